@@ -1,0 +1,78 @@
+"""The ``pamrun`` command: each sub-command is a Hydra application over ``conf/config.yaml``.
+
+``pamrun <command> [<subcommand>] [key=value ...] [hydra flags]``: the words before the
+first override pick the task; the rest goes to Hydra untouched, so ``--cfg job``,
+``--help``, ``-m`` (multirun) and every override work the same for every command.
+Adding a command is one entry in :data:`COMMANDS`.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+
+from pamrun.config import CONF_DIR
+
+# command words -> (module, function, one-line help). Functions take the composed DictConfig.
+COMMANDS: dict[str, tuple[str, str, str]] = {
+    "muscle step": ("pamrun.lab", "muscle_step", "step responses of one antagonistic pair vs thesis §10.1"),
+    "muscle calibrate": ("pamrun.lab", "muscle_calibrate", "fit the spring table S(P) to the §10.1 step responses"),
+    "muscle curves": ("pamrun.lab", "muscle_curves", "force-contraction curves and surface (Figs 8.9, 8.10)"),
+}
+
+
+def usage() -> str:
+    width = max(len(c) for c in COMMANDS)
+    lines = [
+        "usage: pamrun <command> [key=value ...] [--cfg job] [--help] [-m]",
+        "",
+        "commands:",
+        *(f"  {name:<{width}}  {text}" for name, (_, _, text) in COMMANDS.items()),
+        "",
+        "Each command is a Hydra app: `pamrun <command> --help` lists its config groups,",
+        "`pamrun <command> --cfg job` prints the composed config.",
+    ]
+    return "\n".join(lines)
+
+
+def split_command(argv: list[str]) -> tuple[str | None, list[str]]:
+    """Longest run of leading words that names a command, and the remaining arguments."""
+    for n in (2, 1):
+        name = " ".join(argv[:n])
+        if len(argv) >= n and name in COMMANDS:
+            return name, argv[n:]
+    return None, argv
+
+
+def main(argv: list[str] | None = None) -> None:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    name, rest = split_command(argv)
+    if name is None:
+        if argv and argv[0] not in ("-h", "--help"):
+            print(f"pamrun: unknown command {' '.join(argv[:2])!r}\n", file=sys.stderr)
+            print(usage(), file=sys.stderr)
+            raise SystemExit(2)
+        print(usage())
+        return
+    run_hydra_app(name, rest)
+
+
+def run_hydra_app(name: str, args: list[str]) -> None:
+    """Run the command's task function as a Hydra app with ``args`` as its command line."""
+    import hydra
+
+    from pamrun.config import register_configs
+
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    register_configs()
+    module, func, _ = COMMANDS[name]
+    task = getattr(importlib.import_module(module), func)
+    job_name = name.replace(" ", "_")
+    sys.argv = [f"pamrun {name}", f"hydra.job.name={job_name}", *args]
+    app = hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")(task)
+    app()
+
+
+if __name__ == "__main__":
+    main()

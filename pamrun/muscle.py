@@ -1,0 +1,318 @@
+"""Pneumatic artificial muscle (PAM) physics: force law, regulator, dynamics, pairs (thesis §8.3).
+
+A Festo DMSP-20-260N fluidic muscle is modelled, as in the thesis, by three parts:
+
+* a **force law** F(x, P): the static contractile force [N] at contraction x [% of the
+  260 mm nominal length] and pressure P [kPa] (Table 8.4's fifth-order polynomial);
+* a **pressure regulator** (Festo VPPM): command voltage [V] -> pressure [kPa], clipped to
+  its 0.1-10 bar range, with an optional first-order lag;
+* **dynamics** D x' + S x = Fce - FL (§8.3, first-order three-element model): x is the
+  muscle's displacement [m] measured from its rest contraction, S(P) [N/m] a table per
+  pressure band, D = tau * S, Fce = F(x, P) of this muscle and FL = F(x2, P2) of its
+  antagonist. The signed polynomial is used inside the dynamics (a muscle past its
+  zero-force contraction is pulled back); the force it applies to a joint is never
+  negative (a muscle cannot push).
+
+Everything works on arrays of shape (n_pairs, 2) so the 20 muscles of the robot step at
+once. Force laws and dynamics are looked up by name in :data:`FORCE_LAWS` and
+:data:`DYNAMICS`, so another law (a geometric model, inflation/deflation hysteresis) is
+one class and one registry entry away.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.polynomial import polynomial as npoly
+
+if TYPE_CHECKING:
+    from pamrun.config import MuscleConfig, PairConfig, RegulatorConfig, SpringConfig, StepExperiment
+
+# F(x, P) = sum p_ij x^i P^j, x in %, P in kPa (thesis Table 8.4; LAR fit, R^2 = 0.9999,
+# RMSE 5.875 N, fitted for -3 % <= x <= zero-force contraction and 0 <= P <= 800 kPa).
+THESIS_COEFFICIENTS: dict[tuple[int, int], float] = {
+    (0, 0): -0.002697,
+    (1, 0): -93.8,
+    (0, 1): 2.917,
+    (2, 0): 13.05,
+    (1, 1): -0.04264,
+    (0, 2): -0.001793,
+    (3, 0): -0.9395,
+    (2, 1): -0.001597,
+    (1, 2): -0.0001142,
+    (0, 3): 4.694e-06,
+    (4, 0): 0.03335,
+    (3, 1): 6.106e-06,
+    (2, 2): 2.699e-06,
+    (1, 3): 1.25e-07,
+    (0, 4): -5.675e-09,
+    (5, 0): -0.0004611,
+    (4, 1): 9.334e-07,
+    (3, 2): -1.221e-08,
+    (2, 3): -1.463e-09,
+    (1, 4): -4.929e-11,
+    (0, 5): 2.492e-12,
+}
+FITTED_PRESSURE_KPA = (0.0, 800.0)  # thesis §8.3: 0-8 bar in 0.5 bar steps
+FITTED_MIN_CONTRACTION_PCT = -3.0  # thesis §8.3: -7.8 mm of stroke
+
+
+class ThesisPolynomial:
+    """The thesis' fitted contractile force F(x, P) (Table 8.4), vectorised.
+
+    Outside the fitted range: pressure is clamped to [0, ``max_pressure_kpa``] kPa (the
+    fifth-order terms diverge beyond 8 bar); contraction is not clamped, so below -3 %
+    (a muscle stretched past its nominal length) the polynomial is extrapolated and keeps
+    pulling harder, and past the zero-force contraction the signed value turns negative.
+    """
+
+    def __init__(self, max_pressure_kpa: float = FITTED_PRESSURE_KPA[1]):
+        self.max_pressure_kpa = max_pressure_kpa
+        self.coefficients = np.zeros((6, 6))
+        for (i, j), value in THESIS_COEFFICIENTS.items():
+            self.coefficients[i, j] = value
+        self.d_coefficients = npoly.polyder(self.coefficients, axis=0)  # dF/dx [N per %]
+
+    def _inputs(self, contraction_pct, pressure_kpa) -> tuple[np.ndarray, np.ndarray]:
+        return np.broadcast_arrays(np.asarray(contraction_pct, float), np.clip(pressure_kpa, 0.0, self.max_pressure_kpa))
+
+    def signed_force_n(self, contraction_pct: np.ndarray, pressure_kpa: np.ndarray) -> np.ndarray:
+        """Raw polynomial value [N]; negative past the zero-force contraction."""
+        return npoly.polyval2d(*self._inputs(contraction_pct, pressure_kpa), self.coefficients)
+
+    def slope_n_per_pct(self, contraction_pct: np.ndarray, pressure_kpa: np.ndarray) -> np.ndarray:
+        """dF/dx [N per % of contraction] (negative: force drops as the muscle shortens)."""
+        return npoly.polyval2d(*self._inputs(contraction_pct, pressure_kpa), self.d_coefficients)
+
+
+FORCE_LAWS = {"thesis_polynomial": ThesisPolynomial}
+
+_DEFAULT_LAW = ThesisPolynomial()
+
+
+def contractile_force(contraction_pct, pressure_kpa):
+    """Force [N] a DMSP-20 applies at a contraction [%] and pressure [kPa] (thesis Table 8.4).
+
+    Vectorised over numpy arrays (broadcasting). Never negative: a muscle cannot push, so
+    past the zero-force contraction the force is 0. Pressure is clamped to the fitted
+    0-800 kPa; contraction below the fitted -3 % is extrapolated (see ThesisPolynomial).
+    """
+    force = _DEFAULT_LAW.signed_force_n(np.asarray(contraction_pct, float), np.asarray(pressure_kpa, float))
+    return np.maximum(force, 0.0)
+
+
+def zero_force_contraction_pct(pressure_kpa: float, law: ThesisPolynomial = _DEFAULT_LAW) -> float:
+    """Contraction [%] at which the muscle's force vanishes at a given pressure [kPa]."""
+    from scipy.optimize import brentq
+
+    return brentq(lambda x: law.signed_force_n(x, pressure_kpa), FITTED_MIN_CONTRACTION_PCT, 45.0)
+
+
+class Regulator:
+    """VPPM proportional pressure regulator: voltage [V] -> pressure [kPa] (thesis §8.3).
+
+    Linear (``gain_kpa_per_v``), input clipped to its voltage range and output to its
+    pressure range (0.1-10 bar). With ``lag_s`` > 0 the pressure follows the target
+    through an exactly discretised first-order lag; with 0 it is reached at once.
+    """
+
+    def __init__(self, cfg: RegulatorConfig, initial_pressure_kpa: np.ndarray):
+        self.cfg = cfg
+        self.pressure_kpa = np.array(initial_pressure_kpa, dtype=float)
+
+    def target_pressure_kpa(self, voltage_v: np.ndarray) -> np.ndarray:
+        c = self.cfg
+        voltage_v = np.clip(voltage_v, c.min_voltage_v, c.max_voltage_v)
+        return np.clip(c.gain_kpa_per_v * voltage_v, c.min_pressure_kpa, c.max_pressure_kpa)
+
+    def voltage_for_pressure_v(self, pressure_kpa: np.ndarray) -> np.ndarray:
+        """Inverse of the linear map (for experiments that are specified in pressure)."""
+        return np.asarray(pressure_kpa, float) / self.cfg.gain_kpa_per_v
+
+    def step(self, voltage_v: np.ndarray, dt_s: float) -> np.ndarray:
+        target = self.target_pressure_kpa(voltage_v)
+        if self.cfg.lag_s > 0:
+            self.pressure_kpa += (target - self.pressure_kpa) * -np.expm1(-dt_s / self.cfg.lag_s)
+        else:
+            self.pressure_kpa = target
+        return self.pressure_kpa
+
+
+class SpringTable:
+    """Spring coefficient S(P) [N/m], piecewise constant over pressure bands (thesis §8.3)."""
+
+    def __init__(self, cfg: SpringConfig):
+        self.edges_kpa = np.asarray(cfg.band_edges_kpa, dtype=float)
+        self.values_n_per_m = np.asarray(cfg.stiffness_n_per_m, dtype=float)
+
+    def band(self, pressure_kpa: np.ndarray) -> np.ndarray:
+        """Index of the band holding each pressure (last band beyond the last edge)."""
+        idx = np.searchsorted(self.edges_kpa, pressure_kpa, side="right") - 1
+        return np.clip(idx, 0, len(self.values_n_per_m) - 1)
+
+    def __call__(self, pressure_kpa: np.ndarray) -> np.ndarray:
+        return self.values_n_per_m[self.band(pressure_kpa)]
+
+
+class FirstOrderPairDynamics:
+    """D x' + S x = Fce - FL for antagonistic pairs, with FL the partner's force (§8.3).
+
+    State: displacement ``x`` [m] of each muscle from its rest contraction, shape (n, 2).
+    The system is stiff: |dF/dx| is ~36 kN/m while S is a few hundred N/m, so explicit
+    Euler diverges above ~2 ms. Each step is linearly implicit (Rosenbrock-Euler) on the
+    full 2x2 Jacobian of each pair, solved in closed form: A-stable at any step size and
+    exact at equilibrium, so a robot simulation can step it at 5 ms or more.
+    """
+
+    def __init__(self, cfg: MuscleConfig, law: ThesisPolynomial, n_pairs: int):
+        self.law = law
+        self.spring = SpringTable(cfg.spring)
+        self.tau_s = cfg.tau_s
+        self.rest_pct = cfg.rest_contraction_pct
+        self.pct_per_m = 100.0 / cfg.nominal_length_m
+        self.x_m = np.zeros((n_pairs, 2))
+
+    def contraction_pct(self) -> np.ndarray:
+        return self.rest_pct + self.pct_per_m * self.x_m
+
+    def set_contraction_pct(self, contraction_pct: np.ndarray) -> None:
+        self.x_m = (np.broadcast_to(contraction_pct, self.x_m.shape) - self.rest_pct) / self.pct_per_m
+
+    def step(self, pressure_kpa: np.ndarray, dt_s: float) -> np.ndarray:
+        """Advance by dt_s at the given muscle pressures [kPa]; return contractions [%]."""
+        c = self.contraction_pct()
+        force = self.law.signed_force_n(c, pressure_kpa)
+        slope = self.law.slope_n_per_pct(c, pressure_kpa) * self.pct_per_m  # N/m
+        s = self.spring(pressure_kpa)
+        d = self.tau_s * s
+        net = force - force[:, ::-1]  # Fce - FL
+        f = (net - s * self.x_m) / d  # x' [m/s]
+        # Jacobian J of f: dfi/dxi = (gi - Si)/Di, dfi/dxj = -gj/Di.
+        j11 = (slope[:, 0] - s[:, 0]) / d[:, 0]
+        j12 = -slope[:, 1] / d[:, 0]
+        j21 = -slope[:, 0] / d[:, 1]
+        j22 = (slope[:, 1] - s[:, 1]) / d[:, 1]
+        # Solve (I - dt J) dx = dt f in closed form.
+        a11, a12, a21, a22 = 1 - dt_s * j11, -dt_s * j12, -dt_s * j21, 1 - dt_s * j22
+        det = a11 * a22 - a12 * a21
+        b1, b2 = dt_s * f[:, 0], dt_s * f[:, 1]
+        self.x_m[:, 0] += (a22 * b1 - a12 * b2) / det
+        self.x_m[:, 1] += (a11 * b2 - a21 * b1) / det
+        return self.contraction_pct()
+
+
+DYNAMICS = {"first_order": FirstOrderPairDynamics}
+
+
+class AntagonisticPairs:
+    """n antagonistic muscle pairs: command -> regulator -> dynamics -> force -> torque.
+
+    Command of thesis §9.5: V1 = V0 + dV, V2 = V0 - dV with dV = dv_max * a, a in [-1, 1].
+    Joint torque T = (F1 - F2) * r [N m] with forces never negative.
+    """
+
+    def __init__(self, cfg: MuscleConfig, n_pairs: int):
+        self.cfg = cfg
+        self.n_pairs = n_pairs
+        self.law = FORCE_LAWS[cfg.force_law](cfg.max_pressure_kpa)
+        self.regulator = Regulator(cfg.regulator, np.full((n_pairs, 2), cfg.v0_v * cfg.regulator.gain_kpa_per_v))
+        self.dynamics = DYNAMICS[cfg.dynamics](cfg, self.law, n_pairs)
+
+    def reset(self, pressure_kpa: float | np.ndarray, contraction_pct: float | np.ndarray) -> None:
+        self.regulator.pressure_kpa = np.array(np.broadcast_to(pressure_kpa, (self.n_pairs, 2)), dtype=float)
+        self.dynamics.set_contraction_pct(contraction_pct)
+
+    def voltages_v(self, action: np.ndarray) -> np.ndarray:
+        """(n,) actions in [-1, 1] -> (n, 2) regulator voltages V0 +- dv_max * a."""
+        dv = self.cfg.dv_max_v * np.clip(action, -1.0, 1.0)
+        return self.cfg.v0_v + np.stack([dv, -dv], axis=-1)
+
+    @property
+    def pressure_kpa(self) -> np.ndarray:
+        """Pressure inside each muscle [kPa] (the regulator's output, capped at the muscle's max)."""
+        return np.minimum(self.regulator.pressure_kpa, self.cfg.max_pressure_kpa)
+
+    def contraction_pct(self) -> np.ndarray:
+        return self.dynamics.contraction_pct()
+
+    def step(self, voltage_v: np.ndarray, dt_s: float) -> None:
+        self.regulator.step(voltage_v, dt_s)
+        self.dynamics.step(self.pressure_kpa, dt_s)
+
+    def forces_n(self) -> np.ndarray:
+        """Force each muscle applies [N], (n, 2), never negative."""
+        return np.maximum(self.law.signed_force_n(self.contraction_pct(), self.pressure_kpa), 0.0)
+
+    def torque_nm(self, radius_m: np.ndarray) -> np.ndarray:
+        forces = self.forces_n()
+        return (forces[:, 0] - forces[:, 1]) * radius_m
+
+
+# --------------------------------------------------------------------------- experiments
+
+
+def simulate_step(muscle: MuscleConfig, pair: PairConfig, experiment: StepExperiment) -> dict[str, np.ndarray]:
+    """One pair from the §10.1 initial state, pressure step at ``pair.step_time_s``.
+
+    The pressures are commanded as regulator voltages. Returns time [s], pressures [kPa]
+    and contractions [%], each (T, 2) for muscle 1 and muscle 2.
+    """
+    pairs = AntagonisticPairs(muscle, 1)
+    pairs.reset(pair.initial_pressure_kpa, pair.initial_contraction_pct)
+    v_before = pairs.regulator.voltage_for_pressure_v([[pair.initial_pressure_kpa] * 2])
+    v_after = pairs.regulator.voltage_for_pressure_v([[experiment.pressure1_kpa, experiment.pressure2_kpa]])
+    n = int(round(pair.duration_s / pair.dt_s))
+    time_s = np.arange(n + 1) * pair.dt_s
+    pressure = np.empty((n + 1, 2))
+    contraction = np.empty((n + 1, 2))
+    pressure[0], contraction[0] = pairs.pressure_kpa[0], pairs.contraction_pct()[0]
+    for k in range(1, n + 1):
+        pairs.step(v_after if time_s[k] > pair.step_time_s else v_before, pair.dt_s)
+        pressure[k], contraction[k] = pairs.pressure_kpa[0], pairs.contraction_pct()[0]
+    return {"time_s": time_s, "pressure_kpa": pressure, "contraction_pct": contraction}
+
+
+def calibrate_spring(muscle: MuscleConfig, pair: PairConfig) -> tuple[list[float], list[int]]:
+    """Fit the spring table S(P) so the §10.1 step responses end at the thesis' values.
+
+    Each muscle of each experiment settles in one pressure band; those bands are fitted
+    (least squares on the simulated final contractions, in log S so S stays positive,
+    started from the closed-form steady state). Bands no experiment reaches are
+    interpolated linearly in pressure between fitted band centres (flat beyond them).
+    Returns the table [N/m] and the indices of the fitted bands.
+    """
+    from dataclasses import replace
+
+    from scipy.optimize import least_squares
+
+    law = FORCE_LAWS[muscle.force_law](muscle.max_pressure_kpa)
+    spring = SpringTable(muscle.spring)
+    pct_per_m = 100.0 / muscle.nominal_length_m
+    rest = muscle.rest_contraction_pct
+
+    guesses: dict[int, list[float]] = {}
+    for exp in pair.experiments.values():
+        p = np.minimum([exp.pressure1_kpa, exp.pressure2_kpa], muscle.max_pressure_kpa)
+        c = np.asarray(exp.thesis_final_pct, float)
+        force = law.signed_force_n(c, p)
+        for i in range(2):
+            x = (c[i] - rest) / pct_per_m
+            guesses.setdefault(int(spring.band(p[i])), []).append((force[i] - force[1 - i]) / x)
+    bands = sorted(guesses)
+    start = np.log([np.mean(guesses[b]) for b in bands])
+
+    def table(log_s: np.ndarray) -> list[float]:
+        centres = 0.5 * (spring.edges_kpa[:-1] + spring.edges_kpa[1:])
+        return list(np.interp(centres, centres[bands], np.exp(log_s)))
+
+    def residuals(log_s: np.ndarray) -> np.ndarray:
+        trial = replace(muscle, spring=replace(muscle.spring, stiffness_n_per_m=table(log_s)))
+        out = []
+        for exp in pair.experiments.values():
+            final = simulate_step(trial, pair, exp)["contraction_pct"][-1]
+            out.extend(final - np.asarray(exp.thesis_final_pct))
+        return np.asarray(out)
+
+    fit = least_squares(residuals, start, x_scale=1.0, xtol=1e-10, ftol=1e-10)
+    return [float(round(v, 3)) for v in table(fit.x)], bands

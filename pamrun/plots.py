@@ -1,0 +1,72 @@
+"""Every figure of pamrun, drawn from files on disk (json/csv), never from live objects.
+
+So any figure can be redrawn from a finished run without re-simulating.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def step_response(json_path: Path, png_path: Path) -> Path:
+    """Contraction of both muscles over time per experiment (thesis Figs 10.4-10.5)."""
+    data = json.loads(Path(json_path).read_text())
+    experiments = data["experiments"]
+    fig, axes = plt.subplots(1, len(experiments), figsize=(5.5 * len(experiments), 4), squeeze=False)
+    for ax, (name, exp) in zip(axes[0], experiments.items()):
+        t = np.asarray(exp["time_s"])
+        c = np.asarray(exp["contraction_pct"])
+        for i, color in ((0, "tab:blue"), (1, "tab:red")):
+            ax.plot(t, c[:, i], color=color, label=f"muscle {i + 1} ({exp['pressure_kpa'][i]:.0f} kPa)")
+            ax.axhline(exp["thesis_final_pct"][i], color=color, ls=":", lw=1)
+        ax.set_title(exp["label"] or name)
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel("contraction [%]")
+        ax.grid(alpha=0.3)
+        ax.legend(title="dotted: thesis final", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=120)
+    plt.close(fig)
+    return Path(png_path)
+
+
+def force_curves(json_path: Path, curves_png: Path, surface_png: Path) -> tuple[Path, Path]:
+    """Force against contraction per pressure (Fig. 8.10) and the F(x, P) surface (Fig. 8.9)."""
+    data = json.loads(Path(json_path).read_text())
+    x = np.asarray(data["contraction_pct"])
+    p = np.asarray(data["pressure_kpa"])
+    f = np.asarray(data["force_n"])  # (len(p), len(x)), never negative
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    colors = plt.cm.viridis(np.linspace(0, 1, len(data["curve_pressures_kpa"])))
+    for color, pc in zip(colors, data["curve_pressures_kpa"]):
+        k = int(np.argmin(np.abs(p - pc)))
+        ax.plot(x, f[k], color=color, label=f"{pc / 100:.0f} bar")
+    ax.set_xlabel("contraction [% of 260 mm]")
+    ax.set_ylabel("force [N]")
+    ax.set_title("DMSP-20 force-contraction (thesis Fig. 8.10)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, ncol=2)
+    fig.tight_layout()
+    fig.savefig(curves_png, dpi=120)
+    plt.close(fig)
+
+    fig = plt.figure(figsize=(6.5, 5))
+    ax3 = fig.add_subplot(projection="3d")
+    xx, pp = np.meshgrid(x, p)
+    ax3.plot_surface(xx, pp / 100, f, cmap="viridis", linewidth=0)
+    ax3.set_xlabel("contraction [%]")
+    ax3.set_ylabel("pressure [bar]")
+    ax3.set_zlabel("force [N]")
+    ax3.set_title("F(x, P) polynomial (thesis Fig. 8.9)")
+    fig.tight_layout()
+    fig.savefig(surface_png, dpi=120)
+    plt.close(fig)
+    return Path(curves_png), Path(surface_png)

@@ -1,0 +1,93 @@
+"""Configuration: composition, validation with the full key, and the CLI's handling of bad input."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+from hydra.errors import ConfigCompositionException
+
+from pamrun.config import BodyConfig, ConfigError, MuscleConfig, to_object
+from tests.conftest import compose_config
+
+
+def test_default_config_is_the_thesis(cfg):
+    assert cfg.muscle.tau_s == 0.3
+    assert cfg.muscle.v0_v == 2.12 and cfg.muscle.dv_max_v == 0.71
+    assert cfg.body.height_m == 1.80 and cfg.body.mass_kg == 80.0
+    assert len(cfg.muscle.spring.stiffness_n_per_m) == 8
+
+
+@pytest.mark.parametrize(
+    "override, key",
+    [
+        ("muscle.tau_s=0", "muscle.tau_s"),
+        ("muscle.tau_s=-0.3", "muscle.tau_s"),
+        ("muscle.regulator.max_pressure_kpa=-5", "muscle.regulator.max_pressure_kpa"),
+        ("muscle.spring.band_edges_kpa=[0,200,100,300,400,500,600,700,800]", "muscle.spring.band_edges_kpa"),
+        ("muscle.spring.stiffness_n_per_m=[1,2,3]", "muscle.spring.stiffness_n_per_m"),
+        ("muscle.spring.stiffness_n_per_m=[1,2,3,-4,5,6,7,8]", "muscle.spring.stiffness_n_per_m"),
+        ("muscle.force_law=geometric", "muscle.force_law"),
+        ("body.height_m=-1.8", "body.height_m"),
+        ("body.knee_limits_deg=[90,0]", "body.knee_limits_deg"),
+        ("pair.experiments.max_and_1bar.pressure1_kpa=-1", "pair.experiments.max_and_1bar.pressure1_kpa"),
+    ],
+)
+def test_impossible_values_name_the_key(override, key):
+    with pytest.raises(ConfigError) as err:
+        to_object(compose_config(override))
+    assert err.value.key == key
+    assert str(err.value).startswith(key + ":")
+
+
+def test_unknown_key_and_wrong_type_fail_in_composition():
+    with pytest.raises(ConfigCompositionException, match="tau"):
+        compose_config("muscle.tau=0.2")
+    with pytest.raises(ConfigCompositionException, match="tau_s"):
+        compose_config("muscle.tau_s=fast")
+
+
+def test_dataclasses_validate_without_hydra():
+    with pytest.raises(ConfigError, match="tau_s"):
+        MuscleConfig(tau_s=-1)
+    with pytest.raises(ConfigError, match="height_m"):
+        BodyConfig(height_m=-1)
+
+
+def run_pamrun(*args: str, cwd=None) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "pamrun.cli", *args], capture_output=True, text=True, cwd=cwd, timeout=300
+    )
+
+
+def test_cli_bad_value_fails_before_the_run_dir(tmp_path):
+    run_dir = tmp_path / "run"
+    proc = run_pamrun("muscle", "step", "muscle.tau_s=-1", f"hydra.run.dir={run_dir}")
+    assert proc.returncode != 0
+    assert "muscle.tau_s" in proc.stderr + proc.stdout
+    assert not run_dir.exists()
+
+
+def test_cli_unknown_key_fails(tmp_path):
+    run_dir = tmp_path / "run"
+    proc = run_pamrun("muscle", "step", "muscle.tua_s=0.2", f"hydra.run.dir={run_dir}")
+    assert proc.returncode != 0
+    assert "tua_s" in proc.stderr
+    assert not run_dir.exists()
+
+
+def test_cli_unknown_command():
+    proc = run_pamrun("fly")
+    assert proc.returncode == 2
+    assert "unknown command" in proc.stderr and "muscle step" in proc.stderr
+
+
+def test_cli_prints_config_and_help():
+    proc = run_pamrun("muscle", "step", "muscle.tau_s=0.2", "--cfg", "job")
+    assert proc.returncode == 0, proc.stderr
+    assert "tau_s: 0.2" in proc.stdout
+    proc = run_pamrun("muscle", "step", "--help")
+    assert proc.returncode == 0
+    assert "muscle: dmsp20" in proc.stdout and "body: thesis" in proc.stdout
+    assert "schema" not in proc.stdout.split("== Config ==")[0]

@@ -1,0 +1,137 @@
+"""The PAM model against the thesis' own numbers (§8.3 Table 8.4, §10.1)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from pamrun.config import MuscleConfig, PairConfig, RegulatorConfig
+from pamrun.muscle import (
+    AntagonisticPairs,
+    Regulator,
+    SpringTable,
+    calibrate_spring,
+    contractile_force,
+    simulate_step,
+    zero_force_contraction_pct,
+)
+
+
+def test_polynomial_spot_values():
+    # THESIS.md §2: F(0 %, 600 kPa) ~ 1577 N (Festo rates ~1500 N at 6 bar).
+    assert contractile_force(0.0, 600.0) == pytest.approx(1576.92, abs=0.05)
+    # Zero-force contractions quoted by the thesis.
+    assert zero_force_contraction_pct(176.4) == pytest.approx(14.06, abs=0.01)
+    assert zero_force_contraction_pct(276.4) == pytest.approx(20.27, abs=0.01)
+    assert zero_force_contraction_pct(800.0) == pytest.approx(28.13, abs=0.01)
+
+
+def test_polynomial_is_vectorised_and_broadcasts():
+    x = np.linspace(-3, 30, 7)
+    p = np.array([[0.0], [400.0], [800.0]])
+    f = contractile_force(x, p)
+    assert f.shape == (3, 7)
+    assert f[2, 0] == pytest.approx(contractile_force(-3.0, 800.0))
+
+
+def test_force_is_never_negative():
+    x, p = np.meshgrid(np.linspace(-10, 45, 200), np.linspace(-100, 1200, 120))
+    f = contractile_force(x, p)
+    assert np.all(f >= 0)
+    # Past the zero-force contraction the muscle is slack: exactly zero, not negative.
+    assert contractile_force(25.0, 276.4) == 0.0
+    assert contractile_force(10.0, 276.4) > 0.0
+
+
+def test_pressure_above_fitted_range_is_clamped():
+    assert contractile_force(5.0, 1000.0) == pytest.approx(contractile_force(5.0, 800.0))
+
+
+def test_regulator_clips_voltage_and_pressure():
+    reg = Regulator(RegulatorConfig(), np.zeros(4))
+    p = reg.target_pressure_kpa(np.array([-1.0, 0.0, 2.12, 12.0]))
+    # 0-10 V -> 0.1-10 bar at 1 bar/V (thesis §8.3, §9.5).
+    np.testing.assert_allclose(p, [10.0, 10.0, 212.0, 1000.0])
+    # The antagonistic command range of §9.5 stays within ~1.4-3 bar.
+    lo, hi = reg.target_pressure_kpa(np.array([2.12 - 0.71, 2.12 + 0.71]))
+    assert 140 <= lo <= 142 and 282 <= hi <= 284
+
+
+def test_regulator_lag_is_first_order():
+    reg = Regulator(RegulatorConfig(lag_s=0.1), np.array([100.0]))
+    for _ in range(100):  # 0.1 s in 1 ms steps: one time constant
+        reg.step(np.array([3.0]), 0.001)
+    assert reg.pressure_kpa[0] == pytest.approx(100 + 200 * (1 - np.exp(-1)), rel=1e-6)
+
+
+def test_spring_table_bands():
+    spring = SpringTable(MuscleConfig().spring)
+    assert spring.band(np.array([0.0, 99.9, 100.0, 276.4, 800.0, 950.0])).tolist() == [0, 0, 1, 2, 7, 7]
+
+
+@pytest.mark.parametrize("name", ["plus_minus_1bar", "max_and_1bar"])
+def test_step_responses_match_thesis(name):
+    pair = PairConfig()
+    exp = pair.experiments[name]
+    final = simulate_step(MuscleConfig(), pair, exp)["contraction_pct"][-1]
+    np.testing.assert_allclose(final, exp.thesis_final_pct, atol=0.5)
+
+
+@pytest.mark.parametrize("dt_s", [0.005, 0.01])
+def test_integration_stable_at_robot_step_sizes(dt_s):
+    """At 5 ms (and 10 ms) the trajectory stays finite, monotone and close to a 0.1 ms reference."""
+    pair = PairConfig(duration_s=1.5, step_time_s=0.5)
+    exp = pair.experiments["max_and_1bar"]
+    fine = simulate_step(MuscleConfig(), replace(pair, dt_s=0.0001), exp)
+    coarse = simulate_step(MuscleConfig(), replace(pair, dt_s=dt_s), exp)
+    c = coarse["contraction_pct"]
+    assert np.all(np.isfinite(c))
+    after = coarse["time_s"] > 0.5
+    assert np.all(np.diff(c[after, 0]) >= -1e-9) and np.all(np.diff(c[after, 1]) <= 1e-9)  # no overshoot/ringing
+    ref = np.stack([np.interp(coarse["time_s"], fine["time_s"], fine["contraction_pct"][:, i]) for i in range(2)], -1)
+    late = coarse["time_s"] > 0.5 + 0.1
+    assert np.max(np.abs(c[late] - ref[late])) < 0.05
+    np.testing.assert_allclose(c[-1], exp.thesis_final_pct, atol=0.5)
+
+
+def test_explicit_euler_would_diverge_at_5ms():
+    """The reason for the implicit step: the pair's fast eigenvalue is far beyond 2 / 5 ms."""
+    muscle = MuscleConfig()
+    law_slope = abs(-93.8) * 100 / muscle.nominal_length_m  # |dF/dx| at x = 0 [N/m]
+    s_min = min(muscle.spring.stiffness_n_per_m)
+    fast_rate = (law_slope + s_min) / (muscle.tau_s * s_min)
+    assert fast_rate * 0.005 > 2
+
+
+def test_calibration_recovers_thesis_from_a_wrong_table():
+    muscle = MuscleConfig()
+    wrong = replace(muscle, spring=replace(muscle.spring, stiffness_n_per_m=[1000.0] * 8))
+    pair = PairConfig(duration_s=1.5, dt_s=0.002)
+    table, fitted = calibrate_spring(wrong, pair)
+    assert fitted == [0, 1, 2, 7]
+    assert all(s > 0 for s in table)
+    tuned = replace(muscle, spring=replace(muscle.spring, stiffness_n_per_m=table))
+    for exp in pair.experiments.values():
+        final = simulate_step(tuned, pair, exp)["contraction_pct"][-1]
+        np.testing.assert_allclose(final, exp.thesis_final_pct, atol=0.01)
+    # The shipped table is what calibration produces.
+    np.testing.assert_allclose(table, muscle.spring.stiffness_n_per_m, rtol=1e-3)
+
+
+def test_pair_command_and_torque():
+    pairs = AntagonisticPairs(MuscleConfig(), 3)
+    pairs.reset(212.0, MuscleConfig().rest_contraction_pct)
+    v = pairs.voltages_v(np.array([0.0, 1.0, -1.0]))
+    np.testing.assert_allclose(v, [[2.12, 2.12], [2.83, 1.41], [1.41, 2.83]])
+    pairs.step(v, 0.005)
+    torque = pairs.torque_nm(np.full(3, 0.05))
+    assert torque[0] == pytest.approx(0.0, abs=1e-9)
+    assert torque[1] > 1.0 and torque[2] == pytest.approx(-torque[1])  # mirror-symmetric command
+    for _ in range(100):
+        pairs.step(v, 0.005)
+        assert np.all(pairs.forces_n() >= 0)
+    # Thesis coupling: once settled, both muscles sit near their zero-force contraction, so
+    # the steady torque is only S * x * r (a finding reported for the robot, issue 3).
+    assert abs(pairs.torque_nm(np.full(3, 0.05))[1]) < 0.5
