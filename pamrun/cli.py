@@ -19,6 +19,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "muscle step": ("pamrun.lab", "muscle_step", "step responses of one antagonistic pair vs thesis §10.1"),
     "muscle calibrate": ("pamrun.lab", "muscle_calibrate", "fit the spring table S(P) to the §10.1 step responses"),
     "muscle curves": ("pamrun.lab", "muscle_curves", "force-contraction curves and surface (Figs 8.9, 8.10)"),
+    "body": ("pamrun.lab", "body", "generate the robot: robot.xml, body.json, robot.png (thesis §8.1-8.2)"),
+    "openloop": ("pamrun.lab", "openloop", "pressure steps on each joint, torso fixed (thesis §10.2)"),
 }
 
 

@@ -136,6 +136,12 @@ class MuscleConfig:
     rest_contraction_pct: float = 14.06  # zero-force contraction at 176.4 kPa (§10.1)
     v0_v: float = 2.12  # common command voltage V0 (§9.5)
     dv_max_v: float = 0.71  # |dV| <= 0.71 V (§9.5)
+    # Muscle-joint coupling (see pamrun/actuation.py): "thesis" (contraction is a dynamic
+    # state, the thesis' Simulink model) or "kinematic" (contraction follows the joint).
+    coupling: str = "thesis"
+    # Not in the thesis: pre-tension and stroke of each pair (pulley radii follow from them).
+    kinematic_rest_contraction_pct: float = 6.5
+    kinematic_max_contraction_pct: float = 13.0
     regulator: RegulatorConfig = field(default_factory=RegulatorConfig)
     spring: SpringConfig = field(default_factory=SpringConfig)
 
@@ -147,6 +153,14 @@ class MuscleConfig:
         _positive(self, "nominal_length_m", "max_pressure_kpa", "tau_s", "v0_v")
         _non_negative(self, "dv_max_v")
         _require(-3.0 <= self.rest_contraction_pct < 30.0, "rest_contraction_pct", "must lie in [-3, 30) %")
+        _require(self.coupling in ("thesis", "kinematic"), "coupling", f"unknown {self.coupling!r}; known: thesis, kinematic")
+        _require(
+            0.0 <= 2 * self.kinematic_rest_contraction_pct - self.kinematic_max_contraction_pct
+            and self.kinematic_rest_contraction_pct < self.kinematic_max_contraction_pct <= 28.0,
+            "kinematic_max_contraction_pct",
+            "must exceed kinematic_rest_contraction_pct, be <= 28 % and <= twice the rest contraction "
+            "(so the antagonist never stretches below 0 %)",
+        )
         _require(self.dv_max_v <= self.v0_v, "dv_max_v", f"must be <= v0_v ({self.v0_v} V): a voltage cannot go negative")
 
 
@@ -179,8 +193,11 @@ class BodyConfig:
     # Joints (Table 8.2)
     joint_stiffness_nm_per_rad: float = 0.0
     joint_damping_nms_per_rad: float = 1.0
-    joint_limit_stiffness_nm_per_rad: float = 1.0e4
-    joint_limit_damping_nms_per_rad: float = 10.0
+    # Joint limits: the thesis' Simscape stop is a spring-damper (1e4 N m/rad, 10 N m s/rad,
+    # Table 8.2). MuJoCo's soft limit cannot be one (see pamrun/body.py); we use its own stiff,
+    # critically damped stop: time constant [s] and damping ratio of the constraint.
+    joint_limit_timeconst_s: float = 0.01
+    joint_limit_dampratio: float = 1.0
     # Left-leg limits, degrees from the standing pose (Table 8.3)
     hip_pitch_limits_deg: list[float] = field(default_factory=lambda: [-45.0, 45.0])
     hip_roll_limits_deg: list[float] = field(default_factory=lambda: [-22.5, 11.25])
@@ -208,9 +225,8 @@ class BodyConfig:
             "friction_dynamic",
             "joint_stiffness_nm_per_rad",
             "joint_damping_nms_per_rad",
-            "joint_limit_stiffness_nm_per_rad",
-            "joint_limit_damping_nms_per_rad",
         )
+        _positive(self, "joint_limit_timeconst_s", "joint_limit_dampratio")
         _require(0.5 <= self.height_m <= 3.0, "height_m", f"must lie in [0.5, 3.0] m, got {self.height_m}")
         for name in ("hip_pitch", "hip_roll", "knee", "ankle_pitch", "ankle_roll"):
             key = f"{name}_limits_deg"
@@ -220,6 +236,63 @@ class BodyConfig:
                 key,
                 f"must be [lower, upper] with lower < upper, got {list(lo_hi)}",
             )
+
+
+# --------------------------------------------------------------------------- task
+
+
+@dataclass
+class RewardConfig:
+    """Per-step reward weights (thesis Table 9.3).
+
+    r = k_vx Vx - k_y y^2 - k_z (z - z0)^2 - k_v sum(a_prev^2) + k_t Ts / Tf
+    """
+
+    k_vx: float = 1.0
+    k_y: float = 4.0
+    k_z: float = 60.0
+    k_v: float = 0.02
+    k_t: float = 25.0
+
+    def __post_init__(self) -> None:
+        for name in ("k_vx", "k_y", "k_z", "k_v", "k_t"):
+            _require(math.isfinite(getattr(self, name)), name, "must be finite")
+
+
+@dataclass
+class EnvConfig:
+    """Timing, termination and reset of the walking task (thesis §9, §7 of THESIS.md)."""
+
+    control_dt_s: float = 0.025  # Ts of the MathWorks example the thesis adapted
+    episode_s: float = 10.0  # Tf (§9)
+    # MuJoCo timestep: the largest that keeps the joint-limit constraint resolved
+    # (MuJoCo needs its time constant >= 2 steps) with the muscle update a multiple of it.
+    physics_dt_s: float = 0.0025
+    # Muscle model update; its torque is held over muscle_dt_s / physics_dt_s MuJoCo steps.
+    muscle_dt_s: float = 0.005
+    fall_height_ratio: float = 0.6  # fall when torso z < ratio * standing torso z
+    max_lateral_m: float = 0.5  # |y| band (§9.5 trajectories)
+    max_tilt_rad: float = math.pi / 4  # |roll|, |pitch|, |yaw| limit (example's check)
+    reset_noise_rad: float = 0.0  # uniform noise on joint angles at reset
+    reset_velocity_noise: float = 0.0  # uniform noise on joint velocities [rad/s]
+
+    def __post_init__(self) -> None:
+        _positive(self, "control_dt_s", "episode_s", "physics_dt_s", "max_lateral_m", "max_tilt_rad")
+        _non_negative(self, "reset_noise_rad", "reset_velocity_noise")
+        _require(0 < self.fall_height_ratio < 1, "fall_height_ratio", "must lie in (0, 1)")
+        _positive(self, "muscle_dt_s")
+        for key, big, small in (
+            ("muscle_dt_s", self.control_dt_s, self.muscle_dt_s),
+            ("physics_dt_s", self.muscle_dt_s, self.physics_dt_s),
+        ):
+            ratio = big / small
+            _require(
+                abs(ratio - round(ratio)) < 1e-6 and round(ratio) >= 1,
+                key,
+                f"must divide {'control_dt_s' if key == 'muscle_dt_s' else 'muscle_dt_s'} ({big}) a whole number "
+                f"of times, got {small}",
+            )
+        _require(self.episode_s >= self.control_dt_s, "episode_s", "must be >= control_dt_s")
 
 
 # --------------------------------------------------------------------------- experiments
@@ -275,6 +348,8 @@ class Config:
     seed: int = 0
     muscle: MuscleConfig = field(default_factory=MuscleConfig)
     body: BodyConfig = field(default_factory=BodyConfig)
+    reward: RewardConfig = field(default_factory=RewardConfig)
+    env: EnvConfig = field(default_factory=EnvConfig)
     pair: PairConfig = field(default_factory=PairConfig)
 
     def __post_init__(self) -> None:

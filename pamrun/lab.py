@@ -157,3 +157,153 @@ def muscle_curves(dcfg: DictConfig) -> None:
         table.add_row(str(pk), *(f"{v:.0f}" for v in vals))
     console.print(table)
     console.print("Wrote force_curves.json, force_curves.png, force_surface.png")
+
+
+# --------------------------------------------------------------------------- robot
+
+# The nine movements of thesis §10.2, on the left leg: (joint, limit side, label).
+# Signs follow the body's convention (right-hand rule about +x forward, +y left, +z up):
+# knee flexion and hip extension are positive pitch, left hip abduction is positive roll;
+# the larger ankle-roll range (+35 deg, Table 8.3) is taken as inversion.
+MOVEMENTS: dict[str, tuple[str, int]] = {
+    "ankle_dorsiflexion": ("ankle_pitch", 0),
+    "ankle_plantar_flexion": ("ankle_pitch", 1),
+    "ankle_inversion": ("ankle_roll", 1),
+    "ankle_eversion": ("ankle_roll", 0),
+    "knee_flexion": ("knee", 1),
+    "hip_abduction": ("hip_roll", 1),
+    "hip_adduction": ("hip_roll", 0),
+    "hip_flexion": ("hip_pitch", 0),
+    "hip_extension": ("hip_pitch", 1),
+}
+
+
+def openloop_movement(cfg: Config, movement: str, duration_s: float = 3.0, step_time_s: float = 0.2) -> dict:
+    """Pressure step on one left-leg pair with the torso held in the air (thesis §10.2).
+
+    The agonist steps to the muscle's maximum pressure, the antagonist to the regulator's
+    minimum; the other pairs stay at V0. Returns the time series and the final angle.
+    """
+    import mujoco
+
+    from pamrun.actuation import MuscleDrive, joint_limits_rad
+    from pamrun.body import JOINTS, build_fixed_model
+
+    joint, side = MOVEMENTS[movement]
+    j = JOINTS.index(f"left_{joint}")
+    limits = joint_limits_rad(cfg.body)[j]
+    model = build_fixed_model(cfg.body, timestep_s=cfg.env.physics_dt_s)
+    data = mujoco.MjData(model)
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in JOINTS]
+    qi = np.array([model.jnt_qposadr[i] for i in ids])
+    vi = np.array([model.jnt_dofadr[i] for i in ids])
+    drive = MuscleDrive(cfg.muscle, cfg.body)
+    drive.reset()
+    mujoco.mj_forward(model, data)
+
+    reg = cfg.muscle.regulator
+    v_max = min(cfg.muscle.max_pressure_kpa, reg.max_pressure_kpa) / reg.gain_kpa_per_v
+    v_min = reg.min_voltage_v
+    rest = drive.voltage_v.copy()
+    stepped = rest.copy()
+    # Muscle 1 pulls towards positive angles: it is the agonist for the upper limit.
+    stepped[j] = [v_max, v_min] if side == 1 else [v_min, v_max]
+
+    dt = cfg.env.muscle_dt_s
+    nstep = int(round(dt / cfg.env.physics_dt_s))
+    n = int(round(duration_s / dt))
+    keep = max(1, int(round(0.01 / dt)))
+    series: dict[str, list] = {"time_s": [], "pressure_kpa": [], "contraction_pct": [], "angle_deg": []}
+    for k in range(n + 1):
+        t = k * dt
+        if k % keep == 0:
+            series["time_s"].append(round(t, 4))
+            series["pressure_kpa"].append(drive.pressure_kpa[j].round(2).tolist())
+            series["contraction_pct"].append(drive.contraction_pct[j].round(3).tolist())
+            series["angle_deg"].append(round(float(np.degrees(data.qpos[qi[j]])), 3))
+        drive.set_voltages(stepped if t >= step_time_s else rest)
+        data.ctrl[:] = drive.torques_nm(data.qpos[qi], data.qvel[vi], dt)
+        mujoco.mj_step(model, data, nstep)
+    # The thesis' limit damping (10 N m s/rad) lets a joint bounce on its stop: average.
+    angles = np.asarray(series["angle_deg"])
+    final = float(angles[np.asarray(series["time_s"]) >= duration_s - 0.5].mean())
+    limit = float(np.degrees(limits[side]))
+    muscle_now = float(data.ctrl[j])  # muscle torque at the end [N m]
+    # Why a joint stalls: the gravity torque to hold at the limit vs the muscle torque there.
+    data.qpos[:] = 0
+    data.qpos[qi[j]] = limits[side]
+    data.qvel[:] = 0
+    mujoco.mj_forward(model, data)
+    gravity = float(data.qfrc_bias[vi[j]])
+    if drive.kinematic:
+        angle = np.zeros(len(JOINTS))
+        angle[j] = limits[side]
+        muscle_at_limit = float(drive.torques_nm(angle, np.zeros(len(JOINTS)), dt)[j])
+    else:
+        muscle_at_limit = muscle_now
+    return {
+        "joint": f"left_{joint}",
+        "limit_deg": round(limit, 3),
+        "final_angle_deg": round(final, 3),
+        "error_deg": round(final - limit, 3),
+        "reached": abs(final - limit) <= 2.0,
+        "pressures_kpa": [round(float(drive.pressure_kpa[j][0]), 1), round(float(drive.pressure_kpa[j][1]), 1)],
+        "pulley_radius_m": round(float(drive.radius_m[j]), 5),
+        "muscle_torque_at_limit_nm": round(muscle_at_limit, 3),
+        "gravity_torque_at_limit_nm": round(gravity, 3),
+        **series,
+    }
+
+
+def openloop(dcfg: DictConfig) -> None:
+    """``pamrun openloop``: the nine §10.2 movements -> openloop.json, one figure each."""
+    cfg: Config = to_object(dcfg)
+    out = run_dir()
+    results = {name: openloop_movement(cfg, name) for name in MOVEMENTS}
+    path = out / "openloop.json"
+    path.write_text(json.dumps({"coupling": cfg.muscle.coupling, "movements": results}))
+    for name in results:
+        plots.openloop_movement(path, name, out / f"openloop_{name}.png")
+    table = Table(title=f"Open-loop tests, torso fixed (thesis §10.2), coupling={cfg.muscle.coupling}")
+    for col in ("movement", "limit (deg)", "final (deg)", "p1/p2 (kPa)", "r (mm)", "muscle (N m)", "gravity (N m)", "reached"):
+        table.add_column(col, justify="left" if col == "movement" else "right", no_wrap=col == "movement")
+    for name, r in results.items():
+        mark = "[green]yes[/green]" if r["reached"] else "[red]no[/red]"
+        p1, p2 = r["pressures_kpa"]
+        table.add_row(name, f"{r['limit_deg']:.2f}", f"{r['final_angle_deg']:.2f}", f"{p1:.0f}/{p2:.0f}",
+                      f"{r['pulley_radius_m'] * 1000:.1f}", f"{r['muscle_torque_at_limit_nm']:.1f}",
+                      f"{r['gravity_torque_at_limit_nm']:.1f}", mark)
+    console.print(table)
+    n_ok = sum(r["reached"] for r in results.values())
+    console.print(
+        f"{n_ok}/{len(results)} movements reach their limit within 2 deg (final: mean of the last 0.5 s). "
+        "muscle: the pair's torque at the limit (thesis coupling: its settled torque); gravity: the torque "
+        "gravity exerts on the joint there. Wrote openloop.json and 9 figures."
+    )
+
+
+def body(dcfg: DictConfig) -> None:
+    """``pamrun body``: robot.xml (generated model), body.json (segments), robot.png."""
+    from pamrun import body as body_mod
+
+    cfg: Config = to_object(dcfg)
+    out = run_dir()
+    spec = body_mod.build_spec(cfg.body, timestep_s=cfg.env.physics_dt_s)
+    model = spec.compile()
+    (out / "robot.xml").write_text(spec.to_xml())
+    rows = body_mod.segment_table(cfg.body)
+    total_kg = float(model.body_subtreemass[0])
+    (out / "body.json").write_text(
+        json.dumps({"height_m": cfg.body.height_m, "mass_kg": cfg.body.mass_kg, "robot_mass_kg": total_kg,
+                    "segments": rows}, indent=2)
+    )
+    import matplotlib.pyplot as plt
+
+    plt.imsave(out / "robot.png", body_mod.render_standing(model, 640, 480))
+    table = Table(title=f"Segments for H = {cfg.body.height_m} m, M = {cfg.body.mass_kg} kg (thesis Table 8.2)")
+    for col in rows[0]:
+        table.add_column(col, justify="left" if col == "segment" else "right")
+    for row in rows:
+        table.add_row(*(f"{v:.4g}" if isinstance(v, float) else str(v) for v in row.values()))
+    console.print(table)
+    console.print(f"Robot mass {total_kg:.2f} kg. Wrote robot.xml, body.json, robot.png")

@@ -24,7 +24,6 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.polynomial import polynomial as npoly
 
 if TYPE_CHECKING:
     from pamrun.config import MuscleConfig, PairConfig, RegulatorConfig, SpringConfig, StepExperiment
@@ -65,25 +64,45 @@ class ThesisPolynomial:
     fifth-order terms diverge beyond 8 bar); contraction is not clamped, so below -3 %
     (a muscle stretched past its nominal length) the polynomial is extrapolated and keeps
     pulling harder, and past the zero-force contraction the signed value turns negative.
+
+    Hot paths first reduce F to a polynomial in x at the current pressures
+    (:meth:`at_pressure`, once per pressure change) and then evaluate it by Horner's rule
+    (:meth:`force_and_slope`, a dozen array operations), since pressure changes once per
+    control step while contraction changes every physics step.
     """
 
     def __init__(self, max_pressure_kpa: float = FITTED_PRESSURE_KPA[1]):
         self.max_pressure_kpa = max_pressure_kpa
-        self.coefficients = np.zeros((6, 6))
+        self.coefficients = np.zeros((6, 6))  # [i, j]: x^i P^j
         for (i, j), value in THESIS_COEFFICIENTS.items():
             self.coefficients[i, j] = value
-        self.d_coefficients = npoly.polyder(self.coefficients, axis=0)  # dF/dx [N per %]
 
-    def _inputs(self, contraction_pct, pressure_kpa) -> tuple[np.ndarray, np.ndarray]:
-        return np.broadcast_arrays(np.asarray(contraction_pct, float), np.clip(pressure_kpa, 0.0, self.max_pressure_kpa))
+    def at_pressure(self, pressure_kpa: np.ndarray) -> np.ndarray:
+        """Coefficients a_i(P) [N / %^i], shape (6, *P.shape): F(x, P) = sum_i a_i x^i."""
+        p = np.clip(np.asarray(pressure_kpa, float), 0.0, self.max_pressure_kpa)
+        powers = p[None, ...] ** np.arange(6).reshape((6,) + (1,) * p.ndim)
+        return np.tensordot(self.coefficients, powers, axes=(1, 0))
+
+    @staticmethod
+    def force_and_slope(coef: np.ndarray, contraction_pct: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Signed F [N] and dF/dx [N per %] at contraction x [%] by Horner's rule."""
+        x = contraction_pct
+        force = coef[5] * x + coef[4]
+        slope = 5.0 * coef[5] * x + 4.0 * coef[4]
+        for i in (3, 2, 1):
+            force = force * x + coef[i]
+            slope = slope * x + i * coef[i]
+        return force * x + coef[0], slope
 
     def signed_force_n(self, contraction_pct: np.ndarray, pressure_kpa: np.ndarray) -> np.ndarray:
         """Raw polynomial value [N]; negative past the zero-force contraction."""
-        return npoly.polyval2d(*self._inputs(contraction_pct, pressure_kpa), self.coefficients)
+        x, p = np.broadcast_arrays(np.asarray(contraction_pct, float), np.asarray(pressure_kpa, float))
+        return self.force_and_slope(self.at_pressure(p), x)[0]
 
     def slope_n_per_pct(self, contraction_pct: np.ndarray, pressure_kpa: np.ndarray) -> np.ndarray:
         """dF/dx [N per % of contraction] (negative: force drops as the muscle shortens)."""
-        return npoly.polyval2d(*self._inputs(contraction_pct, pressure_kpa), self.d_coefficients)
+        x, p = np.broadcast_arrays(np.asarray(contraction_pct, float), np.asarray(pressure_kpa, float))
+        return self.force_and_slope(self.at_pressure(p), x)[1]
 
 
 FORCE_LAWS = {"thesis_polynomial": ThesisPolynomial}
@@ -120,6 +139,8 @@ class Regulator:
     def __init__(self, cfg: RegulatorConfig, initial_pressure_kpa: np.ndarray):
         self.cfg = cfg
         self.pressure_kpa = np.array(initial_pressure_kpa, dtype=float)
+        self._voltage: np.ndarray | None = None
+        self._target = self.pressure_kpa.copy()
 
     def target_pressure_kpa(self, voltage_v: np.ndarray) -> np.ndarray:
         c = self.cfg
@@ -130,13 +151,22 @@ class Regulator:
         """Inverse of the linear map (for experiments that are specified in pressure)."""
         return np.asarray(pressure_kpa, float) / self.cfg.gain_kpa_per_v
 
-    def step(self, voltage_v: np.ndarray, dt_s: float) -> np.ndarray:
-        target = self.target_pressure_kpa(voltage_v)
+    def step(self, voltage_v: np.ndarray, dt_s: float) -> bool:
+        """Advance by dt_s holding ``voltage_v``; return whether the pressure changed.
+
+        The target is recomputed only when a new voltage array is passed (callers hold
+        one array per command), so an ideal regulator costs nothing per physics step.
+        """
+        if voltage_v is not self._voltage:
+            self._voltage = voltage_v
+            self._target = self.target_pressure_kpa(voltage_v)
+            if self.cfg.lag_s == 0:
+                self.pressure_kpa = self._target.copy()
+                return True
         if self.cfg.lag_s > 0:
-            self.pressure_kpa += (target - self.pressure_kpa) * -np.expm1(-dt_s / self.cfg.lag_s)
-        else:
-            self.pressure_kpa = target
-        return self.pressure_kpa
+            self.pressure_kpa += (self._target - self.pressure_kpa) * -np.expm1(-dt_s / self.cfg.lag_s)
+            return True
+        return False
 
 
 class SpringTable:
@@ -172,6 +202,9 @@ class FirstOrderPairDynamics:
         self.rest_pct = cfg.rest_contraction_pct
         self.pct_per_m = 100.0 / cfg.nominal_length_m
         self.x_m = np.zeros((n_pairs, 2))
+        self.force_n = np.zeros((n_pairs, 2))
+        self._pressure: np.ndarray | None = None
+        self._dt = 0.0
 
     def contraction_pct(self) -> np.ndarray:
         return self.rest_pct + self.pct_per_m * self.x_m
@@ -179,26 +212,35 @@ class FirstOrderPairDynamics:
     def set_contraction_pct(self, contraction_pct: np.ndarray) -> None:
         self.x_m = (np.broadcast_to(contraction_pct, self.x_m.shape) - self.rest_pct) / self.pct_per_m
 
-    def step(self, pressure_kpa: np.ndarray, dt_s: float) -> np.ndarray:
-        """Advance by dt_s at the given muscle pressures [kPa]; return contractions [%]."""
-        c = self.contraction_pct()
-        force = self.law.signed_force_n(c, pressure_kpa)
-        slope = self.law.slope_n_per_pct(c, pressure_kpa) * self.pct_per_m  # N/m
-        s = self.spring(pressure_kpa)
-        d = self.tau_s * s
-        net = force - force[:, ::-1]  # Fce - FL
-        f = (net - s * self.x_m) / d  # x' [m/s]
-        # Jacobian J of f: dfi/dxi = (gi - Si)/Di, dfi/dxj = -gj/Di.
-        j11 = (slope[:, 0] - s[:, 0]) / d[:, 0]
-        j12 = -slope[:, 1] / d[:, 0]
-        j21 = -slope[:, 0] / d[:, 1]
-        j22 = (slope[:, 1] - s[:, 1]) / d[:, 1]
-        # Solve (I - dt J) dx = dt f in closed form.
-        a11, a12, a21, a22 = 1 - dt_s * j11, -dt_s * j12, -dt_s * j21, 1 - dt_s * j22
-        det = a11 * a22 - a12 * a21
-        b1, b2 = dt_s * f[:, 0], dt_s * f[:, 1]
-        self.x_m[:, 0] += (a22 * b1 - a12 * b2) / det
-        self.x_m[:, 1] += (a11 * b2 - a21 * b1) / det
+    def at_pressure(self, pressure_kpa: np.ndarray) -> None:
+        """Cache what depends on pressure only: force coefficients, S and D = tau S."""
+        self._pressure = pressure_kpa
+        self._coef = self.law.at_pressure(pressure_kpa)
+        self.s = self.spring(pressure_kpa)
+        self.d = self.tau_s * self.s
+
+    def step(self, pressure_kpa: np.ndarray, dt_s: float, pressure_changed: bool = True) -> np.ndarray:
+        """Advance by dt_s at the given muscle pressures [kPa]; return contractions [%].
+
+        Also leaves ``self.force_n``, the signed force at the new state, linearised like
+        the step itself (F + dF/dx dx), so callers need not evaluate the polynomial again.
+        """
+        if pressure_changed or self._pressure is None or dt_s != self._dt:
+            self.at_pressure(pressure_kpa)
+            self._dt = dt_s
+            self._h = dt_s / self.d
+            self._h_s = self._h * self.s
+        x, h = self.x_m, self._h
+        force, slope = self.law.force_and_slope(self._coef, self.rest_pct + self.pct_per_m * x)
+        slope *= self.pct_per_m  # dF/dx [N/m]
+        b = h * (force - force[:, ::-1]) - self._h_s * x  # dt * x' [m]
+        # (I - dt J) dx = b, dt J = h * [[g1 - S1, -g2], [-g1, g2 - S2]] per pair; Cramer's rule.
+        diag = 1.0 + self._h_s - h * slope
+        off = h * slope[:, ::-1]
+        det = diag[:, 0] * diag[:, 1] - off[:, 0] * off[:, 1]
+        dx = (diag[:, ::-1] * b - off * b[:, ::-1]) / det[:, None]
+        x += dx
+        self.force_n = force + slope * dx
         return self.contraction_pct()
 
 
@@ -218,10 +260,13 @@ class AntagonisticPairs:
         self.law = FORCE_LAWS[cfg.force_law](cfg.max_pressure_kpa)
         self.regulator = Regulator(cfg.regulator, np.full((n_pairs, 2), cfg.v0_v * cfg.regulator.gain_kpa_per_v))
         self.dynamics = DYNAMICS[cfg.dynamics](cfg, self.law, n_pairs)
+        self._pressure = np.zeros((n_pairs, 2))
 
     def reset(self, pressure_kpa: float | np.ndarray, contraction_pct: float | np.ndarray) -> None:
         self.regulator.pressure_kpa = np.array(np.broadcast_to(pressure_kpa, (self.n_pairs, 2)), dtype=float)
+        self.regulator._voltage = None
         self.dynamics.set_contraction_pct(contraction_pct)
+        self.dynamics._pressure = None
 
     def voltages_v(self, action: np.ndarray) -> np.ndarray:
         """(n,) actions in [-1, 1] -> (n, 2) regulator voltages V0 +- dv_max * a."""
@@ -231,22 +276,26 @@ class AntagonisticPairs:
     @property
     def pressure_kpa(self) -> np.ndarray:
         """Pressure inside each muscle [kPa] (the regulator's output, capped at the muscle's max)."""
-        return np.minimum(self.regulator.pressure_kpa, self.cfg.max_pressure_kpa)
+        return np.minimum(self.regulator.pressure_kpa, self.cfg.max_pressure_kpa, out=self._pressure)
 
     def contraction_pct(self) -> np.ndarray:
         return self.dynamics.contraction_pct()
 
     def step(self, voltage_v: np.ndarray, dt_s: float) -> None:
-        self.regulator.step(voltage_v, dt_s)
-        self.dynamics.step(self.pressure_kpa, dt_s)
+        changed = self.regulator.step(voltage_v, dt_s)
+        self.dynamics.step(self.pressure_kpa, dt_s, changed)
 
     def forces_n(self) -> np.ndarray:
         """Force each muscle applies [N], (n, 2), never negative."""
-        return np.maximum(self.law.signed_force_n(self.contraction_pct(), self.pressure_kpa), 0.0)
+        dyn = self.dynamics
+        if dyn._pressure is None:
+            dyn.at_pressure(self.pressure_kpa)
+        return np.maximum(self.law.force_and_slope(dyn._coef, self.contraction_pct())[0], 0.0)
 
     def torque_nm(self, radius_m: np.ndarray) -> np.ndarray:
-        forces = self.forces_n()
-        return (forces[:, 0] - forces[:, 1]) * radius_m
+        """Joint torque [N m] after the last step: (F1 - F2) r, forces never negative."""
+        force = np.maximum(self.dynamics.force_n, 0.0)
+        return (force[:, 0] - force[:, 1]) * radius_m
 
 
 # --------------------------------------------------------------------------- experiments

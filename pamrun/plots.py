@@ -70,3 +70,29 @@ def force_curves(json_path: Path, curves_png: Path, surface_png: Path) -> tuple[
     fig.savefig(surface_png, dpi=120)
     plt.close(fig)
     return Path(curves_png), Path(surface_png)
+
+
+def openloop_movement(json_path: Path, movement: str, png_path: Path) -> Path:
+    """Pressures, contractions and joint angle of one open-loop test (thesis Figs 10.6-10.23)."""
+    data = json.loads(Path(json_path).read_text())
+    r = data["movements"][movement]
+    t = np.asarray(r["time_s"])
+    fig, axes = plt.subplots(3, 1, figsize=(6, 7), sharex=True)
+    p, c = np.asarray(r["pressure_kpa"]), np.asarray(r["contraction_pct"])
+    for i, color in ((0, "tab:blue"), (1, "tab:red")):
+        axes[0].plot(t, p[:, i] / 100, color=color, label=f"muscle {i + 1}")
+        axes[1].plot(t, c[:, i], color=color, label=f"muscle {i + 1}")
+    axes[2].plot(t, r["angle_deg"], color="k")
+    axes[2].axhline(r["limit_deg"], color="gray", ls="--", label="limit")
+    axes[0].set_ylabel("pressure [bar]")
+    axes[1].set_ylabel("contraction [%]")
+    axes[2].set_ylabel(f"{r['joint']} [deg]")
+    axes[2].set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"{movement.replace('_', ' ')} ({data['coupling']} coupling)")
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=100)
+    plt.close(fig)
+    return Path(png_path)

@@ -51,3 +51,38 @@ def test_muscle_calibrate_writes_yaml_without_touching_conf(tmp_path):
     assert proc.returncode == 0, proc.stderr
     text = (run_dir / "spring_table.yaml").read_text()
     assert "stiffness_n_per_m" in text and "Fitted bands" in text
+
+
+def test_pamrun_body_writes_model_table_and_picture(tmp_path):
+    run_dir = tmp_path / "body"
+    proc = run_pamrun("body", "body.height_m=1.6", "body.mass_kg=60", f"hydra.run.dir={run_dir}")
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads((run_dir / "body.json").read_text())
+    assert data["height_m"] == 1.6 and abs(data["robot_mass_kg"] - 0.464 * 60) < 1e-6
+    assert "<mujoco" in (run_dir / "robot.xml").read_text()
+    assert (run_dir / "robot.png").stat().st_size > 10_000
+
+
+def test_openloop_kinematic_reaches_the_limits_it_can(tmp_path):
+    """Kinematic coupling: every joint whose muscles out-pull gravity reaches its limit."""
+    run_dir = tmp_path / "ol"
+    proc = run_pamrun("openloop", "muscle.coupling=kinematic", f"hydra.run.dir={run_dir}")
+    assert proc.returncode == 0, proc.stderr
+    moves = json.loads((run_dir / "openloop.json").read_text())["movements"]
+    assert len(moves) == 9 and len(list(run_dir.glob("openloop_*.png"))) == 9
+    for name, r in moves.items():
+        strong = abs(r["muscle_torque_at_limit_nm"]) > abs(r["gravity_torque_at_limit_nm"]) + 2.0
+        assert r["reached"] == strong, name
+    for name in ("ankle_dorsiflexion", "ankle_plantar_flexion", "ankle_inversion", "ankle_eversion",
+                 "hip_abduction", "hip_adduction"):
+        assert moves[name]["reached"], name
+
+
+def test_openloop_thesis_coupling_has_no_steady_torque(tmp_path):
+    """Thesis coupling: once settled, both muscles sit at their zero-force contraction."""
+    run_dir = tmp_path / "olt"
+    proc = run_pamrun("openloop", f"hydra.run.dir={run_dir}")
+    assert proc.returncode == 0, proc.stderr
+    moves = json.loads((run_dir / "openloop.json").read_text())["movements"]
+    assert all(abs(r["muscle_torque_at_limit_nm"]) < 1.0 for r in moves.values())
+    assert not moves["knee_flexion"]["reached"] and not moves["hip_flexion"]["reached"]

@@ -1,0 +1,278 @@
+"""PamWalker: the thesis' walking task as a Gymnasium environment (thesis §9).
+
+The MuJoCo body of :mod:`pamrun.body` driven by the 20 muscles of
+:mod:`pamrun.actuation`. Every constant is a keyword argument whose default is the
+thesis value, so ``gymnasium.make("pamrun/PamWalker-v0", reward={"k_z": 30})`` works
+without Hydra; the Hydra groups ``body``, ``muscle``, ``reward`` and ``env`` map onto the
+keyword arguments of the same names.
+
+## Action space
+``Box(-1, 1, (10,), float32)``: one value a per joint, in ``pamrun.body.JOINTS`` order
+(right leg then left, each hip pitch, hip roll, knee, ankle pitch, ankle roll). The pair
+of that joint gets V1 = V0 + 0.71 a, V2 = V0 - 0.71 a (§9.5); the action is held for one
+control step Ts = 0.025 s (``env.control_dt_s``). Within it the muscle model steps every
+``env.muscle_dt_s`` (5 ms) and MuJoCo every ``env.physics_dt_s`` (1 ms), the muscle
+torques held between muscle steps (``mj_step`` with ``nstep``, no Python per physics step).
+
+## Observation space
+``Box(-inf, inf, (43,), float32)``:
+
+| index | meaning | unit |
+|---|---|---|
+| 0 | torso lateral position y | m |
+| 1 | torso height z | m |
+| 2, 3, 4 | torso roll, pitch, yaw | rad |
+| 5, 6, 7 | torso linear velocity vx, vy, vz (world frame) | m/s |
+| 8, 9, 10 | torso angular velocity (torso frame) | rad/s |
+| 11-20 | joint angles, JOINTS order | rad |
+| 21-30 | joint angular velocities, JOINTS order | rad/s |
+| 31, 32 | normal ground force under the right, left foot | robot weights (N / (m g)) |
+| 33-42 | the previous action | 1 |
+
+## Reward (thesis Table 9.3, config group ``reward``)
+r = k_vx Vx - k_y y^2 - k_z (z - z0)^2 - k_v sum(a_prev^2) + k_t Ts / Tf, with Vx the
+torso's forward velocity, y its lateral deviation, z - z0 its height change since reset
+and a_prev the action applied in this step (the "previous action" of the next
+observation). Each term is in ``info["reward_terms"]``.
+
+## Episode end
+Truncation after Tf = 10 s (400 steps). Termination when the torso falls below
+``fall_height_ratio`` of its standing height, |y| > 0.5 m, |roll|, |pitch| or |yaw| >= pi/4,
+or the physics state is not finite (``info["physics_error"]`` is then True).
+
+## info
+``x``, ``y``, ``z``, ``distance`` (x walked since reset) [m], ``reward_terms``,
+``pressure_kpa`` and ``contraction_pct`` (10, 2) of the 20 muscles, ``foot_force_n``
+(right, left) [N], ``fell``, ``physics_error``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import asdict, is_dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+import mujoco  # noqa: E402
+from omegaconf import OmegaConf  # noqa: E402
+
+from pamrun import body as body_mod  # noqa: E402
+from pamrun.actuation import MuscleDrive  # noqa: E402
+from pamrun.config import BodyConfig, EnvConfig, MuscleConfig, RewardConfig, to_object  # noqa: E402
+
+OBS_SIZE = 43
+N_JOINTS = 10
+_INSTABILITY_WARNINGS = (
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADQACC,
+)
+
+
+def as_config(value: Any, cls: type) -> Any:
+    """A dataclass of type ``cls`` from None, a dataclass, or a (nested, partial) dict.
+
+    Dicts are merged over the defaults through OmegaConf, so unknown keys and wrong types
+    fail with the key named, then values are validated (pamrun.config.ConfigError).
+    """
+    if value is None:
+        return cls()
+    if isinstance(value, cls):
+        return value
+    if is_dataclass(value):
+        value = asdict(value)
+    merged = OmegaConf.merge(OmegaConf.structured(cls), OmegaConf.create(dict(value)))
+    return to_object(merged)
+
+
+def quat_to_euler(quat_wxyz: np.ndarray) -> tuple[float, float, float]:
+    """Roll, pitch, yaw [rad] (extrinsic x-y-z) of a unit quaternion (w, x, y, z)."""
+    w, x, y, z = quat_wxyz
+    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
+    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return roll, pitch, yaw
+
+
+class PamWalkerEnv(gym.Env):
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 40}
+
+    def __init__(
+        self,
+        body: BodyConfig | dict | None = None,
+        muscle: MuscleConfig | dict | None = None,
+        reward: RewardConfig | dict | None = None,
+        env: EnvConfig | dict | None = None,
+        render_mode: str | None = None,
+        width: int = 480,
+        height: int = 360,
+    ):
+        self.body_cfg = as_config(body, BodyConfig)
+        self.muscle_cfg = as_config(muscle, MuscleConfig)
+        self.reward_cfg = as_config(reward, RewardConfig)
+        self.env_cfg = as_config(env, EnvConfig)
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        self.render_mode = render_mode
+        self.width, self.height = width, height
+
+        self.model = body_mod.build_model(self.body_cfg, timestep_s=self.env_cfg.physics_dt_s)
+        self.data = mujoco.MjData(self.model)
+        self.n_muscle_steps = int(round(self.env_cfg.control_dt_s / self.env_cfg.muscle_dt_s))
+        self.n_physics_per_muscle = int(round(self.env_cfg.muscle_dt_s / self.env_cfg.physics_dt_s))
+        self.n_substeps = self.n_muscle_steps * self.n_physics_per_muscle  # MuJoCo steps per control step
+        self.max_steps = int(round(self.env_cfg.episode_s / self.env_cfg.control_dt_s))
+        self.drive = MuscleDrive(self.muscle_cfg, self.body_cfg)
+
+        m = self.model
+        joint_ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name) for name in body_mod.JOINTS]
+        self._qpos_idx = np.array([m.jnt_qposadr[j] for j in joint_ids])
+        self._qvel_idx = np.array([m.jnt_dofadr[j] for j in joint_ids])
+        self._torso_id = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body_mod.TORSO)
+        self._foot_sensor_adr = np.array(
+            [m.sensor_adr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, s)] for s in body_mod.FOOT_SENSORS]
+        )
+        self.weight_n = float(m.body_subtreemass[0] * -m.opt.gravity[2])
+
+        key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "stand")
+        self._qpos0 = m.key_qpos[key].copy() if key >= 0 else m.qpos0.copy()
+        self.z0 = float(self._qpos0[2])
+
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (N_JOINTS,), np.float32)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (OBS_SIZE,), np.float32)
+        self._prev_action = np.zeros(N_JOINTS)
+        self._steps = 0
+        self._x0 = 0.0
+        self._renderer: mujoco.Renderer | None = None
+
+    # ------------------------------------------------------------------ gym API
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        d, cfg = self.data, self.env_cfg
+        mujoco.mj_resetData(self.model, d)
+        d.qpos[:] = self._qpos0
+        if cfg.reset_noise_rad > 0:
+            d.qpos[self._qpos_idx] += self.np_random.uniform(-cfg.reset_noise_rad, cfg.reset_noise_rad, N_JOINTS)
+        if cfg.reset_velocity_noise > 0:
+            noise = cfg.reset_velocity_noise
+            d.qvel[self._qvel_idx] = self.np_random.uniform(-noise, noise, N_JOINTS)
+        mujoco.mj_forward(self.model, d)
+        self.drive.reset()
+        self._prev_action = np.zeros(N_JOINTS)
+        self._steps = 0
+        self._x0 = float(d.qpos[0])
+        feet = self.foot_forces_n()
+        return self._observation(feet), self._info(False, feet)
+
+    def step(self, action):
+        action = np.clip(np.asarray(action, dtype=np.float64).reshape(N_JOINTS), -1.0, 1.0)
+        m, d = self.model, self.data
+        dt, nstep = self.env_cfg.muscle_dt_s, self.n_physics_per_muscle
+        self.drive.set_action(action)
+        qi, vi = self._qpos_idx, self._qvel_idx
+        for _ in range(self.n_muscle_steps):
+            d.ctrl[:] = self.drive.torques_nm(d.qpos[qi], d.qvel[vi], dt)
+            mujoco.mj_step(m, d, nstep)
+        self._steps += 1
+        self._prev_action = action
+
+        # MuJoCo resets the state itself when it meets NaN/Inf, so count its warnings too.
+        unstable = sum(d.warning[w].number for w in _INSTABILITY_WARNINGS)
+        physics_error = unstable > 0 or not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all())
+        feet = self.foot_forces_n()
+        obs = self._observation(feet)
+        if physics_error:
+            obs = np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
+        reward, terms = self._reward(action, physics_error)
+        fell = physics_error or self._fell()
+        truncated = self._steps >= self.max_steps and not fell
+        info = self._info(physics_error, feet)
+        info["reward_terms"] = terms
+        return obs, reward, fell, truncated, info
+
+    def render(self):
+        if self.render_mode != "rgb_array":
+            return None
+        if self._renderer is None:
+            self._renderer = mujoco.Renderer(self.model, self.height, self.width)
+        self._renderer.update_scene(self.data, camera=body_mod.CAMERA)
+        return self._renderer.render()
+
+    def close(self):
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # ------------------------------------------------------------------ pieces
+
+    def _torso_state(self) -> tuple[np.ndarray, tuple[float, float, float], np.ndarray, np.ndarray]:
+        d = self.data
+        return d.qpos[0:3], quat_to_euler(d.qpos[3:7]), d.qvel[0:3], d.qvel[3:6]
+
+    def foot_forces_n(self) -> np.ndarray:
+        """Normal ground force [N] under the right and left foot (MuJoCo touch sensors).
+
+        Sensors are evaluated inside ``mj_step`` before integration, so the value lags the
+        state by one physics step (1 ms).
+        """
+        return self.data.sensordata[self._foot_sensor_adr].copy()
+
+    def _observation(self, foot_force_n: np.ndarray) -> np.ndarray:
+        d = self.data
+        pos, (roll, pitch, yaw), lin_vel, ang_vel = self._torso_state()
+        obs = np.concatenate(
+            [
+                [pos[1], pos[2], roll, pitch, yaw],
+                lin_vel,
+                ang_vel,
+                d.qpos[self._qpos_idx],
+                d.qvel[self._qvel_idx],
+                foot_force_n / self.weight_n,
+                self._prev_action,
+            ]
+        )
+        return obs.astype(np.float32)
+
+    def _reward(self, action: np.ndarray, physics_error: bool) -> tuple[float, dict[str, float]]:
+        k, cfg = self.reward_cfg, self.env_cfg
+        if physics_error:
+            terms = {"forward": 0.0, "lateral": 0.0, "height": 0.0, "effort": 0.0, "alive": 0.0}
+            return 0.0, terms
+        pos, _, lin_vel, _ = self._torso_state()
+        terms = {
+            "forward": k.k_vx * float(lin_vel[0]),
+            "lateral": -k.k_y * float(pos[1]) ** 2,
+            "height": -k.k_z * (float(pos[2]) - self.z0) ** 2,
+            "effort": -k.k_v * float(np.sum(action**2)),
+            "alive": k.k_t * cfg.control_dt_s / cfg.episode_s,
+        }
+        return float(sum(terms.values())), terms
+
+    def _fell(self) -> bool:
+        cfg = self.env_cfg
+        pos, angles, _, _ = self._torso_state()
+        return bool(
+            pos[2] < cfg.fall_height_ratio * self.z0
+            or abs(pos[1]) > cfg.max_lateral_m
+            or max(abs(a) for a in angles) >= cfg.max_tilt_rad
+        )
+
+    def _info(self, physics_error: bool, foot_force_n: np.ndarray) -> dict[str, Any]:
+        d = self.data
+        x, y, z = (float(v) for v in d.qpos[0:3])
+        return {
+            "x": x,
+            "y": y,
+            "z": z,
+            "distance": x - self._x0,
+            "pressure_kpa": self.drive.pressure_kpa.copy(),
+            "contraction_pct": self.drive.contraction_pct.copy(),
+            "foot_force_n": foot_force_n,
+            "fell": bool(physics_error or self._fell()),
+            "physics_error": bool(physics_error),
+        }

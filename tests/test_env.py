@@ -1,0 +1,204 @@
+"""PamWalker-v0: spaces, observation layout, reward, termination, seeding, API checks."""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import pamrun  # noqa: F401  (registers the env)
+from pamrun.body import JOINTS
+from pamrun.config import ConfigError
+from pamrun.env import PamWalkerEnv, quat_to_euler
+
+
+@pytest.fixture(scope="module")
+def env():
+    e = gym.make("pamrun/PamWalker-v0")
+    yield e
+    e.close()
+
+
+def test_spaces_and_registration(env):
+    assert env.observation_space.shape == (43,)
+    assert env.action_space.shape == (10,)
+    assert np.all(env.action_space.low == -1) and np.all(env.action_space.high == 1)
+    assert env.unwrapped.max_steps == 400  # Tf / Ts = 10 s / 0.025 s
+
+
+def test_check_env():
+    e = PamWalkerEnv()
+    check_env(e, skip_render_check=True)
+    e.close()
+
+
+def test_observation_layout_matches_state(env):
+    obs, info = env.reset(seed=0)
+    u = env.unwrapped
+    d = u.data
+    obs, *_ = env.step(np.full(10, 0.3, dtype=np.float32))
+    assert obs[0] == pytest.approx(d.qpos[1], abs=1e-6)  # y
+    assert obs[1] == pytest.approx(d.qpos[2], abs=1e-6)  # z
+    roll, pitch, yaw = quat_to_euler(d.qpos[3:7])
+    np.testing.assert_allclose(obs[2:5], [roll, pitch, yaw], atol=1e-6)
+    np.testing.assert_allclose(obs[5:8], d.qvel[0:3], atol=1e-5)
+    np.testing.assert_allclose(obs[8:11], d.qvel[3:6], atol=1e-5)
+    np.testing.assert_allclose(obs[11:21], d.qpos[u._qpos_idx], atol=1e-6)
+    np.testing.assert_allclose(obs[21:31], d.qvel[u._qvel_idx], atol=1e-4)
+    np.testing.assert_allclose(obs[31:33], u.foot_forces_n() / u.weight_n, atol=1e-5)
+    # The touch sensors agree with MuJoCo's contact forces summed per foot.
+    contact = np.zeros(2)
+    wrench = np.zeros(6)
+    feet = [u.model.body(f).id for f in ("right_foot", "left_foot")]
+    for i in range(d.ncon):
+        body_id = u.model.geom_bodyid[d.contact[i].geom1 if d.contact[i].geom2 == 0 else d.contact[i].geom2]
+        mujoco.mj_contactForce(u.model, d, i, wrench)
+        contact[feet.index(body_id)] += wrench[0]
+    np.testing.assert_allclose(u.foot_forces_n(), contact, rtol=0.2, atol=5.0)
+    np.testing.assert_allclose(obs[33:43], 0.3, atol=1e-6)
+    # Joint order is the documented one.
+    names = [u.model.joint(int(j)).name for j in u.model.dof_jntid[u._qvel_idx]]
+    assert names == list(JOINTS)
+
+
+def test_standing_feet_carry_the_weight(env):
+    env.reset(seed=0)
+    obs = None
+    for _ in range(4):
+        obs, *_ = env.step(np.zeros(10, dtype=np.float32))
+    assert obs[31] + obs[32] == pytest.approx(1.0, abs=0.25)
+
+
+def test_reward_terms_match_hand_computation(env):
+    env.reset(seed=1)
+    action = np.linspace(-1, 1, 10).astype(np.float32)
+    _, reward, _, _, info = env.step(action)
+    u = env.unwrapped
+    vx = u.data.qvel[0]
+    y, z = u.data.qpos[1], u.data.qpos[2]
+    hand = 1.0 * vx - 4.0 * y**2 - 60.0 * (z - u.z0) ** 2 - 0.02 * np.sum(action.astype(float) ** 2) + 25 * 0.025 / 10
+    assert reward == pytest.approx(hand, rel=1e-6, abs=1e-9)
+    assert sum(info["reward_terms"].values()) == pytest.approx(reward)
+    assert info["reward_terms"]["alive"] == pytest.approx(0.0625)
+
+
+def test_reward_weights_are_keyword_arguments():
+    e = gym.make("pamrun/PamWalker-v0", reward={"k_v": 1.0, "k_t": 0.0})
+    e.reset(seed=0)
+    _, _, _, _, info = e.step(np.ones(10, dtype=np.float32))
+    assert info["reward_terms"]["effort"] == pytest.approx(-10.0)
+    assert info["reward_terms"]["alive"] == 0.0
+    e.close()
+
+
+def test_bad_keyword_values_fail_with_the_key():
+    with pytest.raises(ConfigError, match="height_m"):
+        PamWalkerEnv(body={"height_m": -1.0})
+    with pytest.raises(Exception, match="k_zz"):
+        PamWalkerEnv(reward={"k_zz": 1.0})
+
+
+def _set_torso(env, **kw):
+    u = env.unwrapped
+    if "y" in kw:
+        u.data.qpos[1] = kw["y"]
+    if "z" in kw:
+        u.data.qpos[2] = kw["z"]
+    if "roll" in kw:
+        r = kw["roll"]
+        u.data.qpos[3:7] = [math.cos(r / 2), math.sin(r / 2), 0, 0]
+
+
+@pytest.mark.parametrize(
+    "case", [{"y": 0.6}, {"y": -0.6}, {"roll": math.pi / 3}, {"z_ratio": 0.3}],
+)
+def test_termination_cases(env, case):
+    env.reset(seed=0)
+    u = env.unwrapped
+    if "z_ratio" in case:
+        case = {"z": u.z0 * case["z_ratio"]}
+    _set_torso(env, **case)
+    assert u._fell()
+
+
+def test_non_finite_physics_ends_the_episode_cleanly(env):
+    env.reset(seed=0)
+    u = env.unwrapped
+    u.data.qvel[:] = np.nan
+    obs, reward, terminated, truncated, info = env.step(np.zeros(10, dtype=np.float32))
+    assert terminated and not truncated
+    assert info["physics_error"]
+    assert np.all(np.isfinite(obs)) and np.isfinite(reward)
+
+
+def test_truncation_after_tf():
+    e = PamWalkerEnv(env={"episode_s": 0.1})
+    e.reset(seed=0)
+    for k in range(4):
+        _, _, terminated, truncated, _ = e.step(np.zeros(10, dtype=np.float32))
+    assert truncated and not terminated
+
+
+def test_seeding_is_reproducible():
+    def rollout(seed):
+        e = PamWalkerEnv(env={"reset_noise_rad": 0.05, "reset_velocity_noise": 0.1})
+        obs, _ = e.reset(seed=seed)
+        rng = np.random.default_rng(seed)
+        out = [obs]
+        for _ in range(20):
+            obs, *_ = e.step(rng.uniform(-1, 1, 10).astype(np.float32))
+            out.append(obs)
+        return np.array(out)
+
+    np.testing.assert_array_equal(rollout(3), rollout(3))
+    assert not np.array_equal(rollout(3)[0], rollout(4)[0])
+
+
+@pytest.mark.parametrize("coupling", ["thesis", "kinematic"])
+def test_info_has_muscle_state(coupling):
+    e = PamWalkerEnv(muscle={"coupling": coupling})
+    e.reset(seed=0)
+    _, _, _, _, info = e.step(np.ones(10, dtype=np.float32))
+    assert info["pressure_kpa"].shape == (10, 2) and info["contraction_pct"].shape == (10, 2)
+    # a = +1: V1 = 2.83 V -> 283 kPa, V2 = 1.41 V -> 141 kPa (thesis §9.5)
+    np.testing.assert_allclose(info["pressure_kpa"][0], [283.0, 141.0])
+    for key in ("x", "y", "z", "distance", "foot_force_n", "fell", "physics_error"):
+        assert key in info
+
+
+def test_render_rgb_array():
+    e = PamWalkerEnv(render_mode="rgb_array", width=160, height=120)
+    e.reset(seed=0)
+    frame = e.render()
+    assert frame.shape == (120, 160, 3) and frame.std() > 5
+    e.close()
+
+
+def test_gymnasium_vector_env():
+    envs = gym.make_vec("pamrun/PamWalker-v0", num_envs=2, vectorization_mode="sync")
+    obs, _ = envs.reset(seed=0)
+    assert obs.shape == (2, 43)
+    obs, rew, term, trunc, _ = envs.step(np.zeros((2, 10), dtype=np.float32))
+    assert rew.shape == (2,)
+    envs.close()
+
+
+def test_torchrl_gymenv_and_parallel_env():
+    from torchrl.envs import GymEnv, ParallelEnv
+    from torchrl.envs.utils import check_env_specs
+
+    env = GymEnv("pamrun/PamWalker-v0")
+    check_env_specs(env)
+    td = env.rollout(5)
+    assert td["observation"].shape == (5, 43)
+    env.close()
+    # "module:id" makes each worker process import pamrun (and so register the env) first.
+    penv = ParallelEnv(2, functools.partial(GymEnv, "pamrun:pamrun/PamWalker-v0"))
+    td = penv.rollout(3)
+    assert td["observation"].shape == (2, 3, 43)
+    penv.close()
