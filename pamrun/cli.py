@@ -9,6 +9,7 @@ Adding a command is one entry in :data:`COMMANDS`.
 from __future__ import annotations
 
 import importlib
+import logging
 import os
 import sys
 
@@ -67,6 +68,7 @@ def run_hydra_app(name: str, args: list[str]) -> None:
     from pamrun.config import register_configs
 
     os.environ.setdefault("MUJOCO_GL", "egl")
+    logging.getLogger("OpenGL").setLevel(logging.WARNING)  # PyOpenGL's import chatter
     register_configs()
     module, func, _ = COMMANDS[name]
     task = getattr(importlib.import_module(module), func)

@@ -301,9 +301,12 @@ def body(dcfg: DictConfig) -> None:
 
     plt.imsave(out / "robot.png", body_mod.render_standing(model, 640, 480))
     table = Table(title=f"Segments for H = {cfg.body.height_m} m, M = {cfg.body.mass_kg} kg (thesis Table 8.2)")
-    for col in rows[0]:
-        table.add_column(col, justify="left" if col == "segment" else "right")
+    headers = {"segment": "segment", "x_m": "x (m)", "y_m": "y (m)", "z_m": "z (m)", "mass_kg": "mass (kg)",
+               "com_m": "CoM (m)", "radius_gyration_m": "ro (m)", "inertia_kgm2": "I0 (kg m2)"}
+    for key, title in headers.items():
+        table.add_column(title, justify="left" if key == "segment" else "right", no_wrap=key == "segment")
     for row in rows:
-        table.add_row(*(f"{v:.4g}" if isinstance(v, float) else str(v) for v in row.values()))
+        table.add_row(*("" if isinstance(v, float) and np.isnan(v) else f"{v:.4f}" if isinstance(v, float) else str(v)
+                        for v in (row[k] for k in headers)))
     console.print(table)
     console.print(f"Robot mass {total_kg:.2f} kg. Wrote robot.xml, body.json, robot.png")
