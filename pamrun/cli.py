@@ -22,6 +22,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "muscle curves": ("pamrun.lab", "muscle_curves", "force-contraction curves and surface (Figs 8.9, 8.10)"),
     "body": ("pamrun.lab", "body", "generate the robot: robot.xml, body.json, robot.png (thesis §8.1-8.2)"),
     "openloop": ("pamrun.lab", "openloop", "pressure steps on each joint, torso fixed (thesis §10.2)"),
+    "train": ("pamrun.train", "train", "train DDPG or TD3 on PamWalker-v0 with TorchRL (thesis §9)"),
 }
 
 

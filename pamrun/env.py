@@ -264,12 +264,12 @@ class PamWalkerEnv(gym.Env):
 
     def _info(self, physics_error: bool, foot_force_n: np.ndarray) -> dict[str, Any]:
         d = self.data
-        x, y, z = (float(v) for v in d.qpos[0:3])
+        x, y, z = (np.float64(v) for v in d.qpos[0:3])  # numpy scalars: TorchRL's info readers need .dtype
         return {
             "x": x,
             "y": y,
             "z": z,
-            "distance": x - self._x0,
+            "distance": np.float64(x - self._x0),
             "pressure_kpa": self.drive.pressure_kpa.copy(),
             "contraction_pct": self.drive.contraction_pct.copy(),
             "foot_force_n": foot_force_n,

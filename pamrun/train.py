@@ -1,0 +1,259 @@
+"""``pamrun train``: DDPG or TD3 on PamWalker-v0 with TorchRL (thesis §9.5).
+
+One loop, top to bottom: a TorchRL collector (one process, or ``train.workers``
+processes) fills a ``TensorDictReplayBuffer``; after ``train.init_random_frames`` of
+uniform random actions, each collected frame buys ``train.updates_per_frame`` gradient
+updates of the loss (``DDPGLoss``/``TD3Loss``) with a ``SoftUpdate`` of the targets. Every
+finished episode is a row of ``episodes.csv`` and a point in TensorBoard (reward, average
+reward, Q0: the three curves of thesis Fig. 10.24); agents whose episode reward reaches
+``train.save_threshold`` are saved (MATLAB's SaveAgentCriteria), and ``checkpoints/last.pt``
+holds what a later resume needs, written atomically.
+"""
+
+from __future__ import annotations
+
+import csv
+import functools
+import json
+import math
+import os
+import random
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+import torch
+from omegaconf import DictConfig
+
+from pamrun.config import Config, to_object
+
+CSV_FIELDS = ("episode", "frames", "reward", "avg_reward", "q0", "length", "distance_m", "wall_time_s")
+
+
+def make_env(cfg: Config):
+    """PamWalker-v0 with this config in TorchRL's GymWrapper; reads ``distance`` from info.
+
+    (TorchRL's ``GymEnv`` reserves the keyword ``env``, so the Gymnasium env is built here.)
+    """
+    import gymnasium as gym
+    from torchrl.envs import GymWrapper
+    from torchrl.envs.gym_like import default_info_dict_reader
+
+    import pamrun  # noqa: F401  (registers the env in worker processes too)
+
+    env = GymWrapper(gym.make(
+        "pamrun/PamWalker-v0",
+        body=asdict(cfg.body), muscle=asdict(cfg.muscle), reward=asdict(cfg.reward), env=asdict(cfg.env),
+    ))
+    env.set_info_dict_reader(default_info_dict_reader(["distance"]))
+    return env
+
+
+def make_collector(cfg: Config, policy, total_frames: int, start_random: int):
+    from torchrl.collectors import Collector, MultiSyncCollector
+
+    # auto_register_policy_transforms: adds the InitTracker the OU noise needs to restart per episode.
+    kwargs = dict(frames_per_batch=cfg.train.frames_per_batch, total_frames=total_frames,
+                  init_random_frames=start_random, auto_register_policy_transforms=True)
+    if cfg.train.workers == 1:
+        return Collector(functools.partial(make_env, cfg), policy, **kwargs)
+    return MultiSyncCollector([functools.partial(make_env, cfg)] * cfg.train.workers, policy, **kwargs)
+
+
+def seed_everything(seed: int) -> None:
+    random.seed(seed)
+    np.random.seed(seed)
+    torch.manual_seed(seed)
+
+
+def atomic_save(obj, path: Path) -> None:
+    """torch.save to a temporary file, then rename: a crash never leaves a torn file."""
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    torch.save(obj, tmp)
+    os.replace(tmp, path)
+
+
+class EpisodeLog:
+    """Per-episode rows in episodes.csv and TensorBoard, and the running average."""
+
+    def __init__(self, out: Path, window: int, writer):
+        self.path = out / "episodes.csv"
+        new = not self.path.exists()
+        self.file = self.path.open("a", newline="")
+        self.csv = csv.DictWriter(self.file, fieldnames=CSV_FIELDS)
+        if new:
+            self.csv.writeheader()
+        self.rewards: list[float] = []
+        self.window = window
+        self.writer = writer
+        self.best = -math.inf
+
+    def add(self, row: dict) -> dict:
+        self.rewards.append(row["reward"])
+        row["avg_reward"] = float(np.mean(self.rewards[-self.window:]))
+        self.best = max(self.best, row["reward"])
+        self.csv.writerow({k: (round(v, 5) if isinstance(v, float) else v) for k, v in row.items()})
+        ep = row["episode"]
+        for key in ("reward", "avg_reward", "q0", "length", "distance_m"):
+            self.writer.add_scalar(f"episode/{key}", row[key], ep)
+        return row
+
+    def close(self) -> None:
+        self.file.close()
+
+
+def train(dcfg: DictConfig) -> None:
+    """The Hydra task of ``pamrun train``."""
+    from rich.console import Console
+    from torch.utils.tensorboard import SummaryWriter
+    from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+
+    from pamrun import agents
+    from pamrun.env import N_JOINTS, OBS_SIZE
+    from pamrun.lab import run_dir
+
+    console = Console()
+    cfg: Config = to_object(dcfg)
+    out = run_dir()
+    ckpt_dir = out / "checkpoints"
+    ckpt_dir.mkdir(exist_ok=True)
+    seed_everything(cfg.seed)
+    torch.set_num_threads(max(1, (os.cpu_count() or 1) - cfg.train.workers + 1))
+
+    probe = make_env(cfg)
+    action_spec = probe.action_spec_unbatched
+    probe.close()
+    actor = agents.make_actor(cfg.algo, OBS_SIZE, N_JOINTS)
+    critic = agents.make_critic(cfg.algo, OBS_SIZE, N_JOINTS)
+    explore = agents.make_exploration(cfg.algo, actor, action_spec)
+    loss, updater, (actor_key, critic_key) = agents.make_loss(cfg.algo, actor, critic, action_spec)
+    actor_params = list(loss.actor_network_params.flatten_keys().values())
+    critic_net_params = loss.value_network_params if cfg.algo.name == "ddpg" else loss.qvalue_network_params
+    critic_params = list(critic_net_params.flatten_keys().values())
+    actor_opt = torch.optim.Adam(actor_params, lr=cfg.algo.actor_lr)
+    critic_opt = torch.optim.Adam(critic_params, lr=cfg.algo.critic_lr)
+    buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(cfg.train.buffer_size), batch_size=cfg.algo.batch_size)
+
+    writer = SummaryWriter(str(out / "tensorboard"))
+    log = EpisodeLog(out, cfg.train.avg_window, writer)
+    run_info = {"status": "running", "seed": cfg.seed, "start": time.strftime("%Y-%m-%dT%H:%M:%S"),
+                "algo": cfg.algo.name}
+    (out / "run.json").write_text(json.dumps(run_info, indent=2))
+
+    frames = episodes = updates = 0
+    saved: list[tuple[float, Path]] = []
+    running: dict[int, dict] = {}
+    collector = make_collector(cfg, explore, cfg.train.max_frames, cfg.train.init_random_frames)
+    start = time.perf_counter()
+    update_budget = 0.0
+    status = "max_frames"
+    console.print(f"Training {cfg.algo.name} on PamWalker-v0: up to {cfg.train.max_frames} frames, "
+                  f"{cfg.train.max_episodes} episodes, {cfg.train.workers} worker(s)")
+    try:
+        for batch in collector:
+            batch = batch.reshape(-1)
+            n = batch.numel()
+            frames += n
+            buffer.extend(batch)
+            # ---- episodes finished in this batch
+            finished = []
+            traj = batch["collector", "traj_ids"].tolist()
+            reward = batch["next", "reward"].reshape(-1).tolist()
+            done = batch["next", "done"].reshape(-1).tolist()
+            distance = batch["next", "distance"].reshape(-1).tolist()
+            for i in range(n):
+                ep = running.setdefault(traj[i], {"reward": 0.0, "length": 0, "obs0": batch["observation"][i]})
+                ep["reward"] += reward[i]
+                ep["length"] += 1
+                if done[i]:
+                    ep["distance_m"] = distance[i]
+                    finished.append(running.pop(traj[i]))
+            if finished:
+                with torch.no_grad():
+                    obs0 = torch.stack([e["obs0"] for e in finished])
+                    q0 = critic.module(obs0, actor.module(obs0)).reshape(-1).tolist()
+                for e, q in zip(finished, q0):
+                    episodes += 1
+                    row = log.add({"episode": episodes, "frames": frames, "reward": e["reward"], "avg_reward": 0.0,
+                                   "q0": q, "length": e["length"], "distance_m": e["distance_m"],
+                                   "wall_time_s": round(time.perf_counter() - start, 3)})
+                    if e["reward"] >= cfg.train.save_threshold:
+                        saved = save_agent(ckpt_dir, actor, row, cfg, saved)
+            # ---- gradient updates
+            learn_frames = frames - max(cfg.train.init_random_frames, frames - n)  # frames past the random phase
+            if learn_frames > 0:
+                update_budget += learn_frames * cfg.train.updates_per_frame
+                while update_budget >= 1:
+                    update_budget -= 1
+                    sample = buffer.sample()
+                    losses = loss(sample)
+                    critic_opt.zero_grad()
+                    losses[critic_key].backward()
+                    torch.nn.utils.clip_grad_norm_(critic_params, cfg.algo.grad_clip)
+                    critic_opt.step()
+                    if updates % cfg.algo.actor_update_every == 0:
+                        actor_opt.zero_grad()
+                        losses = loss(sample)  # fresh graph: the critic step changed the critic
+                        losses[actor_key].backward()
+                        torch.nn.utils.clip_grad_norm_(actor_params, cfg.algo.grad_clip)
+                        actor_opt.step()
+                        updater.step()
+                    updates += 1
+                    if updates % 50 == 0:
+                        writer.add_scalar("loss/actor", float(losses[actor_key]), updates)
+                        writer.add_scalar("loss/critic", float(losses[critic_key]), updates)
+                collector.update_policy_weights_()
+            scale = agents.noise_scale(cfg.algo, frames)
+            agents.set_noise_scale(explore, scale)
+            elapsed = time.perf_counter() - start
+            writer.add_scalar("throughput/frames_per_s", frames / elapsed, frames)
+            writer.add_scalar("throughput/updates_per_s", updates / elapsed, frames)
+            writer.add_scalar("exploration/noise_std", math.sqrt(cfg.algo.noise_variance) * scale, frames)
+            console.print(f"frames {frames:>8}  episodes {episodes:>5}  avg {log.rewards and np.mean(log.rewards[-cfg.train.avg_window:]) or 0:8.2f}  "
+                          f"best {log.best:8.2f}  {frames / elapsed:6.0f} frames/s  {updates / elapsed:5.1f} updates/s")
+            if frames % cfg.train.checkpoint_every_frames < n:
+                save_last(ckpt_dir, loss, actor_opt, critic_opt, frames, episodes, updates)
+            if episodes >= cfg.train.max_episodes:
+                status = "max_episodes"
+                break
+            if cfg.train.max_minutes and elapsed > 60 * cfg.train.max_minutes:
+                status = "max_minutes"
+                break
+            if cfg.train.target_avg_reward and len(log.rewards) >= cfg.train.avg_window and \
+                    np.mean(log.rewards[-cfg.train.avg_window:]) >= cfg.train.target_avg_reward:
+                status = "target_avg_reward"
+                break
+    except KeyboardInterrupt:
+        status = "interrupted"
+    finally:
+        collector.shutdown()
+        save_last(ckpt_dir, loss, actor_opt, critic_opt, frames, episodes, updates)
+        log.close()
+        writer.close()
+        run_info.update(status=status, end=time.strftime("%Y-%m-%dT%H:%M:%S"), frames=frames, episodes=episodes,
+                        updates=updates, best_reward=log.best if episodes else None,
+                        saved_agents=[str(p.name) for _, p in saved])
+        (out / "run.json").write_text(json.dumps(run_info, indent=2))
+    console.print(f"Done ({status}): {frames} frames, {episodes} episodes, {updates} updates; "
+                  f"best episode reward {log.best:.2f}; {len(saved)} saved agent(s) in {ckpt_dir}")
+
+
+def save_agent(ckpt_dir: Path, actor, row: dict, cfg: Config, saved: list) -> list:
+    """Save the actor with its episode's reward in name and metadata; keep the best ``keep_saved``."""
+    path = ckpt_dir / f"agent_ep{row['episode']:06d}_r{row['reward']:.1f}.pt"
+    meta = {k: row[k] for k in ("episode", "frames", "reward", "distance_m", "q0")}
+    atomic_save({"actor": actor.module.state_dict(), "meta": meta, "algo": asdict(cfg.algo)}, path)
+    saved = sorted(saved + [(row["reward"], path)], key=lambda t: -t[0])
+    for _, old in saved[cfg.train.keep_saved:]:
+        old.unlink(missing_ok=True)
+    return saved[: cfg.train.keep_saved]
+
+
+def save_last(ckpt_dir: Path, loss, actor_opt, critic_opt, frames: int, episodes: int, updates: int) -> None:
+    atomic_save(
+        {"loss": loss.state_dict(), "actor_opt": actor_opt.state_dict(), "critic_opt": critic_opt.state_dict(),
+         "counters": {"frames": frames, "episodes": episodes, "updates": updates},
+         "rng": {"torch": torch.get_rng_state(), "numpy": np.random.get_state(), "python": random.getstate()}},
+        ckpt_dir / "last.pt",
+    )
