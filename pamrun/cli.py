@@ -74,6 +74,9 @@ def run_hydra_app(name: str, args: list[str]) -> None:
     module, func, _ = COMMANDS[name]
     task = getattr(importlib.import_module(module), func)
     job_name = name.replace(" ", "_")
+    resume = [a.split("=", 1)[1] for a in args if a.startswith("resume=")]
+    if resume:  # continue in the run's own directory; keep its original .hydra/ untouched
+        args = [*args, f"hydra.run.dir={resume[-1]}", "hydra.output_subdir=.hydra-resume"]
     sys.argv = [f"pamrun {name}", f"hydra.job.name={job_name}", *args]
     app = hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")(task)
     app()

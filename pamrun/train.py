@@ -18,13 +18,16 @@ import json
 import math
 import os
 import random
+import shutil
+import subprocess
 import time
 from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 import torch
-from omegaconf import DictConfig
+from hydra.core.hydra_config import HydraConfig
+from omegaconf import DictConfig, OmegaConf
 
 from pamrun.config import Config, to_object
 
@@ -80,24 +83,31 @@ class EpisodeLog:
     def __init__(self, out: Path, window: int, writer):
         self.path = out / "episodes.csv"
         new = not self.path.exists()
+        history = [] if new else [float(r["reward"]) for r in csv.DictReader(self.path.open())]
         self.file = self.path.open("a", newline="")
         self.csv = csv.DictWriter(self.file, fieldnames=CSV_FIELDS)
         if new:
             self.csv.writeheader()
-        self.rewards: list[float] = []
+        self.rewards: list[float] = history
         self.window = window
         self.writer = writer
-        self.best = -math.inf
+        self.best = max(self.rewards, default=-math.inf)
 
     def add(self, row: dict) -> dict:
         self.rewards.append(row["reward"])
         row["avg_reward"] = float(np.mean(self.rewards[-self.window:]))
         self.best = max(self.best, row["reward"])
         self.csv.writerow({k: (round(v, 5) if isinstance(v, float) else v) for k, v in row.items()})
+        self.file.flush()  # a killed process loses no finished episode
         ep = row["episode"]
         for key in ("reward", "avg_reward", "q0", "length", "distance_m"):
             self.writer.add_scalar(f"episode/{key}", row[key], ep)
         return row
+
+    def sync(self) -> None:
+        """Make the rows durable before a checkpoint refers to them (machine loss)."""
+        self.file.flush()
+        os.fsync(self.file.fileno())
 
     def close(self) -> None:
         self.file.close()
@@ -117,6 +127,14 @@ def train(dcfg: DictConfig) -> None:
     cfg: Config = to_object(dcfg)
     out = run_dir()
     ckpt_dir = out / "checkpoints"
+    resuming = bool(cfg.resume)
+    if resuming:
+        cfg = load_run_config(out)
+        console.print(f"Resuming {out} with its own config ({cfg.algo.name}); command-line values are ignored.")
+    else:
+        if (ckpt_dir / "last.pt").exists():
+            raise SystemExit(f"pamrun: {out} already holds a training run; continue it with resume={out}")
+        (out / "pamrun_config.yaml").write_text(OmegaConf.to_yaml(OmegaConf.structured(cfg)))
     ckpt_dir.mkdir(exist_ok=True)
     seed_everything(cfg.seed)
     torch.set_num_threads(max(1, (os.cpu_count() or 1) - cfg.train.workers + 1))
@@ -135,17 +153,42 @@ def train(dcfg: DictConfig) -> None:
     critic_opt = torch.optim.Adam(critic_params, lr=cfg.algo.critic_lr)
     buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(cfg.train.buffer_size), batch_size=cfg.algo.batch_size)
 
+    frames = episodes = updates = 0
+    previous_s = 0.0
+    if resuming:
+        state = torch.load(ckpt_dir / "last.pt", weights_only=False)
+        loss.load_state_dict(state["loss"])
+        actor_opt.load_state_dict(state["actor_opt"])
+        critic_opt.load_state_dict(state["critic_opt"])
+        frames, episodes, updates = (state["counters"][k] for k in ("frames", "episodes", "updates"))
+        previous_s = state["counters"].get("wall_time_s", 0.0)
+        torch.set_rng_state(state["rng"]["torch"])
+        np.random.set_state(state["rng"]["numpy"])
+        random.setstate(state["rng"]["python"])
+        load_buffer(buffer, ckpt_dir)
+        truncate_after(out, ckpt_dir, episodes)
+        if frames >= cfg.train.max_frames or episodes >= cfg.train.max_episodes:
+            console.print(f"{out} already finished its budget ({frames} frames, {episodes} episodes): nothing to do.")
+            return
+    agents.set_noise_scale(explore, agents.noise_scale(cfg.algo, frames))
+
     writer = SummaryWriter(str(out / "tensorboard"))
     log = EpisodeLog(out, cfg.train.avg_window, writer)
-    run_info = {"status": "running", "seed": cfg.seed, "start": time.strftime("%Y-%m-%dT%H:%M:%S"),
-                "algo": cfg.algo.name}
+    run_info = json.loads((out / "run.json").read_text()) if resuming else {
+        "command": " ".join(["pamrun", "train", *HydraConfig.get().overrides.task]),
+        "git_commit": git_commit(), "versions": package_versions(), "seed": cfg.seed, "algo": cfg.algo.name,
+        "start": time.strftime("%Y-%m-%dT%H:%M:%S")}
+    run_info["status"] = "running"
+    if resuming:
+        run_info.setdefault("resumed", []).append({"at": time.strftime("%Y-%m-%dT%H:%M:%S"), "frames": frames})
     (out / "run.json").write_text(json.dumps(run_info, indent=2))
 
-    frames = episodes = updates = 0
-    saved: list[tuple[float, Path]] = []
+    saved = scan_saved(ckpt_dir)
     running: dict[int, dict] = {}
-    collector = make_collector(cfg, explore, cfg.train.max_frames, cfg.train.init_random_frames)
-    start = time.perf_counter()
+    collector = make_collector(cfg, explore, cfg.train.max_frames - frames,
+                               max(0, cfg.train.init_random_frames - frames))
+    collector.set_seed(cfg.seed + frames)
+    start = time.perf_counter() - previous_s
     update_budget = 0.0
     status = "max_frames"
     console.print(f"Training {cfg.algo.name} on PamWalker-v0: up to {cfg.train.max_frames} frames, "
@@ -213,7 +256,8 @@ def train(dcfg: DictConfig) -> None:
             console.print(f"frames {frames:>8}  episodes {episodes:>5}  avg {log.rewards and np.mean(log.rewards[-cfg.train.avg_window:]) or 0:8.2f}  "
                           f"best {log.best:8.2f}  {frames / elapsed:6.0f} frames/s  {updates / elapsed:5.1f} updates/s")
             if frames % cfg.train.checkpoint_every_frames < n:
-                save_last(ckpt_dir, loss, actor_opt, critic_opt, frames, episodes, updates)
+                log.sync()
+                save_last(ckpt_dir, loss, actor_opt, critic_opt, buffer, frames, episodes, updates, elapsed)
             if episodes >= cfg.train.max_episodes:
                 status = "max_episodes"
                 break
@@ -228,7 +272,9 @@ def train(dcfg: DictConfig) -> None:
         status = "interrupted"
     finally:
         collector.shutdown()
-        save_last(ckpt_dir, loss, actor_opt, critic_opt, frames, episodes, updates)
+        log.sync()
+        save_last(ckpt_dir, loss, actor_opt, critic_opt, buffer, frames, episodes, updates,
+                  time.perf_counter() - start)
         log.close()
         writer.close()
         run_info.update(status=status, end=time.strftime("%Y-%m-%dT%H:%M:%S"), frames=frames, episodes=episodes,
@@ -250,10 +296,73 @@ def save_agent(ckpt_dir: Path, actor, row: dict, cfg: Config, saved: list) -> li
     return saved[: cfg.train.keep_saved]
 
 
-def save_last(ckpt_dir: Path, loss, actor_opt, critic_opt, frames: int, episodes: int, updates: int) -> None:
+def save_last(ckpt_dir: Path, loss, actor_opt, critic_opt, buffer, frames: int, episodes: int, updates: int,
+              wall_time_s: float) -> None:
+    """Everything a resume needs. The buffer goes first, through a directory swap, then
+    ``last.pt`` atomically, so a crash at any moment leaves a loadable pair."""
+    tmp, live, old = ckpt_dir / "buffer.tmp", ckpt_dir / "buffer", ckpt_dir / "buffer.old"
+    shutil.rmtree(tmp, ignore_errors=True)
+    buffer.dumps(tmp)
+    shutil.rmtree(old, ignore_errors=True)
+    if live.exists():
+        os.replace(live, old)
+    os.replace(tmp, live)
+    shutil.rmtree(old, ignore_errors=True)
     atomic_save(
         {"loss": loss.state_dict(), "actor_opt": actor_opt.state_dict(), "critic_opt": critic_opt.state_dict(),
-         "counters": {"frames": frames, "episodes": episodes, "updates": updates},
+         "counters": {"frames": frames, "episodes": episodes, "updates": updates, "wall_time_s": wall_time_s},
          "rng": {"torch": torch.get_rng_state(), "numpy": np.random.get_state(), "python": random.getstate()}},
         ckpt_dir / "last.pt",
     )
+
+
+def load_buffer(buffer, ckpt_dir: Path) -> None:
+    """The replay buffer of the last checkpoint (or of the one before, mid-swap)."""
+    for name in ("buffer", "buffer.old"):
+        if (ckpt_dir / name).exists():
+            buffer.loads(ckpt_dir / name)
+            return
+    raise SystemExit(f"pamrun: no replay buffer in {ckpt_dir}: cannot resume")
+
+
+def truncate_after(out: Path, ckpt_dir: Path, episodes: int) -> None:
+    """Forget what was logged after the last checkpoint: those episodes will be run again."""
+    path = out / "episodes.csv"
+    if path.exists():
+        rows = list(csv.DictReader(path.open()))
+        kept = [r for r in rows if int(r["episode"]) <= episodes]
+        with path.open("w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=CSV_FIELDS)
+            w.writeheader()
+            w.writerows(kept)
+    for agent in ckpt_dir.glob("agent_ep*.pt"):
+        if int(agent.name.split("_")[1][2:]) > episodes:
+            agent.unlink()
+
+
+def scan_saved(ckpt_dir: Path) -> list[tuple[float, Path]]:
+    """Threshold-saved agents already on disk, best first."""
+    found = [(torch.load(p, weights_only=True)["meta"]["reward"], p) for p in ckpt_dir.glob("agent_ep*.pt")]
+    return sorted(found, key=lambda t: -t[0])
+
+
+def load_run_config(out: Path) -> Config:
+    path = out / "pamrun_config.yaml"
+    if not (out / "checkpoints" / "last.pt").exists() or not path.exists():
+        raise SystemExit(f"pamrun: {out} holds no training run to resume (no checkpoints/last.pt)")
+    return to_object(OmegaConf.merge(OmegaConf.structured(Config), OmegaConf.load(path)))
+
+
+def git_commit() -> str | None:
+    try:
+        return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True,
+                              cwd=Path(__file__).parent).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return None
+
+
+def package_versions() -> dict[str, str]:
+    from importlib.metadata import version
+
+    return {name: version(name) for name in ("pamrun", "torch", "torchrl", "tensordict", "mujoco", "gymnasium",
+                                             "numpy", "hydra-core")}
