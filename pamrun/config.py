@@ -423,6 +423,7 @@ class Config:
     algo: AlgoConfig = field(default_factory=AlgoConfig)
     train: TrainConfig = field(default_factory=TrainConfig)
     resume: str = ""  # a run directory to continue from its last checkpoint
+    dir: str = ""  # a run directory, for commands that read one (pamrun plot training)
     pair: PairConfig = field(default_factory=PairConfig)
 
     def __post_init__(self) -> None:

@@ -96,3 +96,26 @@ def openloop_movement(json_path: Path, movement: str, png_path: Path) -> Path:
     fig.savefig(png_path, dpi=100)
     plt.close(fig)
     return Path(png_path)
+
+
+def training_curves(csv_path: Path, png_path: Path) -> Path:
+    """Episode reward, average reward and episode Q0 against episode (thesis Fig. 10.24)."""
+    import csv
+
+    rows = list(csv.DictReader(Path(csv_path).open()))
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    if rows:
+        ep = np.array([int(r["episode"]) for r in rows])
+        for key, label, style in (("reward", "episode reward", dict(color="tab:blue", alpha=0.45, lw=0.8)),
+                                  ("avg_reward", "average reward", dict(color="tab:red", lw=1.8)),
+                                  ("q0", "episode Q0", dict(color="tab:orange", lw=1.0))):
+            ax.plot(ep, [float(r[key]) for r in rows], label=label, **style)
+    ax.set_xlabel("episode")
+    ax.set_ylabel("reward")
+    ax.set_title(f"Training progress ({len(rows)} episodes; thesis Fig. 10.24)")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=110)
+    plt.close(fig)
+    return Path(png_path)

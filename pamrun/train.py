@@ -191,8 +191,8 @@ def train(dcfg: DictConfig) -> None:
     start = time.perf_counter() - previous_s
     update_budget = 0.0
     status = "max_frames"
-    console.print(f"Training {cfg.algo.name} on PamWalker-v0: up to {cfg.train.max_frames} frames, "
-                  f"{cfg.train.max_episodes} episodes, {cfg.train.workers} worker(s)")
+    console.print(header_table(cfg, out))
+    progress = Progress(console, cfg.train.max_frames, frames)
     try:
         for batch in collector:
             batch = batch.reshape(-1)
@@ -244,8 +244,8 @@ def train(dcfg: DictConfig) -> None:
                         updater.step()
                     updates += 1
                     if updates % 50 == 0:
-                        writer.add_scalar("loss/actor", float(losses[actor_key]), updates)
-                        writer.add_scalar("loss/critic", float(losses[critic_key]), updates)
+                        writer.add_scalar("loss/actor", losses[actor_key].item(), updates)
+                        writer.add_scalar("loss/critic", losses[critic_key].item(), updates)
                 collector.update_policy_weights_()
             scale = agents.noise_scale(cfg.algo, frames)
             agents.set_noise_scale(explore, scale)
@@ -253,8 +253,9 @@ def train(dcfg: DictConfig) -> None:
             writer.add_scalar("throughput/frames_per_s", frames / elapsed, frames)
             writer.add_scalar("throughput/updates_per_s", updates / elapsed, frames)
             writer.add_scalar("exploration/noise_std", math.sqrt(cfg.algo.noise_variance) * scale, frames)
-            console.print(f"frames {frames:>8}  episodes {episodes:>5}  avg {log.rewards and np.mean(log.rewards[-cfg.train.avg_window:]) or 0:8.2f}  "
-                          f"best {log.best:8.2f}  {frames / elapsed:6.0f} frames/s  {updates / elapsed:5.1f} updates/s")
+            avg = float(np.mean(log.rewards[-cfg.train.avg_window:])) if log.rewards else float("nan")
+            progress.update(frames, f"episodes {episodes}  avg {avg:.2f}  best {log.best:.2f}  "
+                                    f"{frames / elapsed:.0f} frames/s  {updates / elapsed:.1f} updates/s")
             if frames % cfg.train.checkpoint_every_frames < n:
                 log.sync()
                 save_last(ckpt_dir, loss, actor_opt, critic_opt, buffer, frames, episodes, updates, elapsed)
@@ -271,6 +272,7 @@ def train(dcfg: DictConfig) -> None:
     except KeyboardInterrupt:
         status = "interrupted"
     finally:
+        progress.stop()
         collector.shutdown()
         log.sync()
         save_last(ckpt_dir, loss, actor_opt, critic_opt, buffer, frames, episodes, updates,
@@ -281,8 +283,84 @@ def train(dcfg: DictConfig) -> None:
                         updates=updates, best_reward=log.best if episodes else None,
                         saved_agents=[str(p.name) for _, p in saved])
         (out / "run.json").write_text(json.dumps(run_info, indent=2))
-    console.print(f"Done ({status}): {frames} frames, {episodes} episodes, {updates} updates; "
-                  f"best episode reward {log.best:.2f}; {len(saved)} saved agent(s) in {ckpt_dir}")
+    from pamrun import plots
+
+    plots.training_curves(out / "episodes.csv", out / "training.png")
+    console.print(summary_table(run_info, log, saved, out))
+
+
+class Progress:
+    """A rich progress bar with ETA on a terminal; a plain line every ~10 s otherwise (CI, files)."""
+
+    def __init__(self, console, total_frames: int, done_frames: int):
+        self.console = console
+        self.bar = None
+        self.last_line = 0.0
+        if console.is_terminal:
+            from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+            from rich.progress import Progress as RichProgress
+
+            self.bar = RichProgress(TextColumn("frames"), BarColumn(), MofNCompleteColumn(),
+                                    TextColumn("{task.fields[info]}"), TimeElapsedColumn(), TextColumn("ETA"),
+                                    TimeRemainingColumn(), console=console)
+            self.task = self.bar.add_task("train", total=total_frames, completed=done_frames, info="")
+            self.bar.start()
+
+    def update(self, frames: int, info: str) -> None:
+        if self.bar is not None:
+            self.bar.update(self.task, completed=frames, info=info)
+        elif time.monotonic() - self.last_line > 10:
+            self.last_line = time.monotonic()
+            self.console.print(f"frames {frames}  {info}", soft_wrap=True)
+
+    def stop(self) -> None:
+        if self.bar is not None:
+            self.bar.stop()
+
+
+def header_table(cfg: Config, out: Path):
+    from rich.table import Table
+
+    table = Table(title="pamrun train", show_header=False)
+    a, t = cfg.algo, cfg.train
+    for key, value in (
+        ("algorithm", f"{a.name}: actor lr {a.actor_lr:g}, critic lr {a.critic_lr:g}, batch {a.batch_size}, "
+                      f"gamma {a.gamma}, tau {a.target_smoothing:g}, noise var {a.noise_variance:g}"),
+        ("robot", f"H {cfg.body.height_m} m, M {cfg.body.mass_kg} kg, coupling {cfg.muscle.coupling}"),
+        ("reward", f"k_vx {cfg.reward.k_vx}, k_y {cfg.reward.k_y}, k_z {cfg.reward.k_z}, k_v {cfg.reward.k_v}, "
+                   f"k_t {cfg.reward.k_t}"),
+        ("budget", f"{t.max_frames} frames / {t.max_episodes} episodes"
+                   + (f" / {t.max_minutes:g} min" if t.max_minutes else "")
+                   + (f", stop at average {t.target_avg_reward:g}" if t.target_avg_reward else "")),
+        ("collection", f"{t.workers} worker(s), {t.frames_per_batch} frames per batch, "
+                       f"{t.updates_per_frame:g} updates per frame"),
+        ("seed", str(cfg.seed)),
+        ("run directory", str(out)),
+    ):
+        table.add_row(key, value)
+    return table
+
+
+def summary_table(run_info: dict, log: EpisodeLog, saved: list, out: Path):
+    from rich.table import Table
+
+    table = Table(title=f"Training finished: {run_info['status']}", show_header=False)
+    rewards = log.rewards
+    best_ep = int(np.argmax(rewards)) + 1 if rewards else None
+    rows = [
+        ("frames / episodes / updates", f"{run_info['frames']} / {run_info['episodes']} / {run_info['updates']}"),
+        ("best episode", f"#{best_ep}: reward {max(rewards):.2f}" if rewards else "none"),
+        ("final average reward", f"{np.mean(rewards[-log.window:]):.2f} (last {min(len(rewards), log.window)})"
+         if rewards else "none"),
+        ("saved agents", f"{len(saved)}" + (f", best {saved[0][1].name}" if saved else "")),
+        ("episodes", str(out / "episodes.csv")),
+        ("curves", str(out / "training.png")),
+        ("checkpoints", str(out / "checkpoints")),
+        ("TensorBoard", f"tensorboard --logdir {out / 'tensorboard'}"),
+    ]
+    for key, value in rows:
+        table.add_row(key, value)
+    return table
 
 
 def save_agent(ckpt_dir: Path, actor, row: dict, cfg: Config, saved: list) -> list:
@@ -366,3 +444,14 @@ def package_versions() -> dict[str, str]:
 
     return {name: version(name) for name in ("pamrun", "torch", "torchrl", "tensordict", "mujoco", "gymnasium",
                                              "numpy", "hydra-core")}
+
+
+def plot_training(dcfg: DictConfig) -> None:
+    """``pamrun plot training dir=<run dir>``: redraw training.png from episodes.csv."""
+    from pamrun import plots
+
+    run = Path(dcfg.dir)
+    if not (run / "episodes.csv").exists():
+        raise SystemExit(f"pamrun: no episodes.csv in {run}")
+    path = plots.training_curves(run / "episodes.csv", run / "training.png")
+    print(f"Wrote {path}")

@@ -99,3 +99,15 @@ def test_killed_run_resumes_without_losing_or_duplicating(tmp_path):
     # The original config was kept; the resume's own Hydra files went elsewhere.
     assert (run_dir / ".hydra" / "overrides.yaml").read_text().count("max_frames=1400") == 1
     assert (run_dir / ".hydra-resume").exists()
+
+
+def test_plot_training_redraws_from_csv(tmp_path):
+    run_dir = tmp_path / "plot"
+    run_dir.mkdir()
+    (run_dir / "episodes.csv").write_text(
+        "episode,frames,reward,avg_reward,q0,length,distance_m,wall_time_s\n"
+        "1,40,-10.5,-10.5,0.1,40,0.01,1.0\n2,90,-5.0,-7.75,0.2,50,0.02,2.0\n"
+    )
+    proc = run_pamrun("plot", "training", f"dir={run_dir}", f"hydra.run.dir={tmp_path / 'job'}")
+    assert proc.returncode == 0, proc.stderr
+    assert (run_dir / "training.png").stat().st_size > 5000
