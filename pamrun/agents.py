@@ -121,3 +121,10 @@ def make_loss(cfg: AlgoConfig, actor: TensorDictModule, critic: ValueOperator, a
     loss.make_value_estimator(gamma=cfg.gamma)
     updater = SoftUpdate(loss, tau=cfg.target_smoothing)
     return loss, updater, keys
+
+
+def loss_parts(loss):
+    """The critic and actor halves of a TorchRL loss, each returning (loss, metadata)."""
+    if isinstance(loss, TD3Loss):
+        return loss.value_loss, loss.actor_loss
+    return loss.loss_value, loss.loss_actor

@@ -1,0 +1,152 @@
+"""Training throughput on this machine: pamrun vs a plain-PyTorch floor vs Stable-Baselines3.
+
+    python benchmarks/train_throughput.py [--frames 3000] [--updates 500]
+
+Measures, in one run, with the thesis' networks (400/300) at batch 128:
+1. ``pamrun train`` with DDPG and with TD3 at one gradient update per frame: environment
+   frames/s and updates/s of the whole loop (collection + learning), from run.json;
+2. TorchRL's TD3 update alone (``TD3Loss`` critic/actor halves + Adam + ``SoftUpdate``) on one batch;
+3. a plain-PyTorch TD3 update of the same networks and batch: the floor TorchRL's
+   machinery costs over;
+4. Stable-Baselines3's TD3 on PamWalker-v0 with net_arch [400, 300], batch 128, one
+   update per step (install with ``pip install -e .[bench]``; skipped if missing).
+Results are appended to benchmarks/results/train_throughput.jsonl.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import torch
+from torch import nn
+
+from pamrun import agents
+from pamrun.config import AlgoConfig
+
+OBS, ACT, BATCH = 43, 10, 128
+
+
+def pamrun_loop(algo: str, frames: int) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [sys.executable, "-m", "pamrun.cli", "train", f"algo={algo}", "train=smoke",
+               f"train.max_frames={frames}", "train.init_random_frames=200", "train.updates_per_frame=1",
+               "train.checkpoint_every_frames=1000000", "train.save_threshold=1e9", f"hydra.run.dir={tmp}/run"]
+        subprocess.run(cmd, check=True, capture_output=True)
+        run = json.loads(Path(tmp, "run", "run.json").read_text())
+    wall = run["wall_time_s"]
+    return {"frames_per_s": round(run["frames"] / wall, 1), "updates_per_s": round(run["updates"] / wall, 1),
+            "frames": run["frames"], "updates": run["updates"], "wall_s": wall}
+
+
+def torchrl_td3_updates(n: int) -> float:
+    from tensordict import TensorDict
+    from torchrl.data import Bounded
+
+    cfg = AlgoConfig(name="td3")
+    spec = Bounded(-torch.ones(ACT), torch.ones(ACT), (ACT,))
+    actor, critic = agents.make_actor(cfg, OBS, ACT), agents.make_critic(cfg, OBS, ACT)
+    loss, updater, _ = agents.make_loss(cfg, actor, critic, spec)
+    critic_loss, actor_loss = agents.loss_parts(loss)
+    a_opt = torch.optim.Adam(list(loss.actor_network_params.flatten_keys().values()), 1e-3)
+    c_opt = torch.optim.Adam(list(loss.qvalue_network_params.flatten_keys().values()), 1e-3)
+    batch = TensorDict({"observation": torch.randn(BATCH, OBS), "action": torch.rand(BATCH, ACT) * 2 - 1,
+                        "next": {"observation": torch.randn(BATCH, OBS), "reward": torch.randn(BATCH, 1),
+                                 "done": torch.zeros(BATCH, 1, dtype=torch.bool),
+                                 "terminated": torch.zeros(BATCH, 1, dtype=torch.bool)}}, [BATCH])
+    start = time.perf_counter()
+    for i in range(n):
+        c_opt.zero_grad()
+        critic_loss(batch)[0].backward()
+        c_opt.step()
+        if i % 2 == 0:
+            a_opt.zero_grad()
+            actor_loss(batch)[0].backward()
+            a_opt.step()
+            updater.step()
+    return n / (time.perf_counter() - start)
+
+
+def plain_td3_updates(n: int) -> float:
+    """The same TD3 update in plain PyTorch (CleanRL style): the floor."""
+    cfg = AlgoConfig(name="td3")
+    actor = agents.ThesisActor(OBS, ACT, (400, 300), 3e-3)
+    q1, q2 = agents.ThesisCritic(OBS, ACT, (400, 300), 3e-3), agents.ThesisCritic(OBS, ACT, (400, 300), 3e-3)
+    actor_t, q1_t, q2_t = copy.deepcopy(actor), copy.deepcopy(q1), copy.deepcopy(q2)
+    a_opt = torch.optim.Adam(actor.parameters(), 1e-3)
+    q_opt = torch.optim.Adam(list(q1.parameters()) + list(q2.parameters()), 1e-3)
+    obs, act, rew = torch.randn(BATCH, OBS), torch.rand(BATCH, ACT) * 2 - 1, torch.randn(BATCH, 1)
+    nxt, done = torch.randn(BATCH, OBS), torch.zeros(BATCH, 1)
+    start = time.perf_counter()
+    for i in range(n):
+        with torch.no_grad():
+            noise = (torch.randn_like(act) * cfg.policy_noise).clamp(-cfg.noise_clip, cfg.noise_clip)
+            a2 = (actor_t(nxt) + noise).clamp(-1, 1)
+            target = rew + cfg.gamma * (1 - done) * torch.min(q1_t(nxt, a2), q2_t(nxt, a2))
+        q_loss = ((q1(obs, act) - target) ** 2).mean() + ((q2(obs, act) - target) ** 2).mean()
+        q_opt.zero_grad()
+        q_loss.backward()
+        q_opt.step()
+        if i % 2 == 0:
+            a_loss = -q1(obs, actor(obs)).mean()
+            a_opt.zero_grad()
+            a_loss.backward()
+            a_opt.step()
+            with torch.no_grad():
+                for net, tgt in ((actor, actor_t), (q1, q1_t), (q2, q2_t)):
+                    for p, tp in zip(net.parameters(), tgt.parameters()):
+                        tp.lerp_(p, cfg.target_smoothing)
+    return n / (time.perf_counter() - start)
+
+
+def sb3_td3(frames: int) -> dict | None:
+    try:
+        from stable_baselines3 import TD3
+    except ImportError:
+        return None
+    import gymnasium as gym
+
+    import pamrun  # noqa: F401
+
+    env = gym.make("pamrun/PamWalker-v0")
+    model = TD3("MlpPolicy", env, policy_kwargs={"net_arch": [400, 300]}, batch_size=BATCH, learning_starts=200,
+                train_freq=1, gradient_steps=1, verbose=0, seed=0, device="cpu")
+    start = time.perf_counter()
+    model.learn(total_timesteps=frames)
+    wall = time.perf_counter() - start
+    return {"frames_per_s": round(frames / wall, 1), "updates_per_s": round((frames - 200) / wall, 1), "wall_s": round(wall, 2)}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, default=3000)
+    parser.add_argument("--updates", type=int, default=500)
+    args = parser.parse_args()
+    row = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "cpu_count": os.cpu_count(), "torch_threads": torch.get_num_threads()}
+    row["pamrun_ddpg"] = pamrun_loop("ddpg", args.frames)
+    row["pamrun_td3"] = pamrun_loop("td3", args.frames)
+    row["torchrl_td3_update_per_s"] = round(torchrl_td3_updates(args.updates), 1)
+    row["plain_pytorch_td3_update_per_s"] = round(plain_td3_updates(args.updates), 1)
+    row["sb3_td3"] = sb3_td3(args.frames)
+    for key, value in row.items():
+        print(f"{key:>32}: {value}")
+    ref = row["sb3_td3"]
+    if ref:
+        print(f"{'pamrun td3 / sb3 td3 (frames/s)':>32}: {row['pamrun_td3']['frames_per_s'] / ref['frames_per_s']:.2f}")
+    print(f"{'torchrl / plain update rate':>32}: "
+          f"{row['torchrl_td3_update_per_s'] / row['plain_pytorch_td3_update_per_s']:.2f}")
+    out = Path(__file__).parent / "results" / "train_throughput.jsonl"
+    out.parent.mkdir(exist_ok=True)
+    with out.open("a") as fh:
+        fh.write(json.dumps(row) + "\n")
+
+
+if __name__ == "__main__":
+    main()
