@@ -26,7 +26,6 @@ import time
 from pathlib import Path
 
 import torch
-from torch import nn
 
 from pamrun import agents
 from pamrun.config import AlgoConfig

@@ -398,7 +398,7 @@ class PairConfig:
             "max_and_1bar": StepExperiment("max/1 bar (Fig 10.4)", 800.0, 100.0, [28.12, 6.28]),
         }
     )
-    # Bands that calibration fits (the others are interpolated linearly in pressure).
+    # `pamrun muscle calibrate` also writes conf/muscle/spring/calibrated.yaml (the default table).
     calibrate_write_conf: bool = True
 
     def __post_init__(self) -> None:
