@@ -167,7 +167,7 @@ class PamWalkerEnv(gym.Env):
         self._steps = 0
         self._x0 = float(d.qpos[0])
         feet = self.foot_forces_n()
-        return self._observation(feet), self._info(False, feet)
+        return self._observation(feet), self._info(False, feet, self._fell())
 
     def step(self, action):
         action = np.clip(np.asarray(action, dtype=np.float64).reshape(N_JOINTS), -1.0, 1.0)
@@ -191,7 +191,7 @@ class PamWalkerEnv(gym.Env):
         reward, terms = self._reward(action, physics_error)
         fell = physics_error or self._fell()
         truncated = self._steps >= self.max_steps and not fell
-        info = self._info(physics_error, feet)
+        info = self._info(physics_error, feet, fell)
         info["reward_terms"] = terms
         return obs, reward, fell, truncated, info
 
@@ -262,7 +262,7 @@ class PamWalkerEnv(gym.Env):
             or max(abs(a) for a in angles) >= cfg.max_tilt_rad
         )
 
-    def _info(self, physics_error: bool, foot_force_n: np.ndarray) -> dict[str, Any]:
+    def _info(self, physics_error: bool, foot_force_n: np.ndarray, fell: bool) -> dict[str, Any]:
         d = self.data
         x, y, z = (np.float64(v) for v in d.qpos[0:3])  # numpy scalars: TorchRL's info readers need .dtype
         return {
@@ -273,6 +273,6 @@ class PamWalkerEnv(gym.Env):
             "pressure_kpa": self.drive.pressure_kpa.copy(),
             "contraction_pct": self.drive.contraction_pct.copy(),
             "foot_force_n": foot_force_n,
-            "fell": bool(physics_error or self._fell()),
+            "fell": bool(fell),
             "physics_error": bool(physics_error),
         }
