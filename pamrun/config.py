@@ -11,6 +11,7 @@ key, before any run directory is created (see :class:`ValidateConfig`).
 from __future__ import annotations
 
 import copy
+import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -80,10 +81,17 @@ SPRING_FILE = CONF_DIR / "muscle" / "spring" / "calibrated.yaml"
 
 def _calibrated_spring() -> dict[str, list[float]]:
     """The table written by ``pamrun muscle calibrate``: the one source of default S(P)."""
+    data = _read_spring_file(SPRING_FILE.stat().st_mtime_ns)
+    return {k: list(v) for k, v in data.items()}  # fresh lists: dataclass fields are mutable
+
+
+@functools.lru_cache(maxsize=4)
+def _read_spring_file(mtime_ns: int) -> dict[str, tuple[float, ...]]:
+    """Parsed once per file version (keyed by mtime, so a new calibration is picked up)."""
     import yaml
 
     data = yaml.safe_load(SPRING_FILE.read_text())
-    return {k: [float(v) for v in data[k]] for k in ("band_edges_kpa", "stiffness_n_per_m")}
+    return {k: tuple(float(v) for v in data[k]) for k in ("band_edges_kpa", "stiffness_n_per_m")}
 
 
 @dataclass
