@@ -29,6 +29,7 @@ import torch
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
+from pamrun.checkpoints import agent_record
 from pamrun.config import Config, to_object
 
 CSV_FIELDS = ("episode", "frames", "reward", "avg_reward", "q0", "length", "distance_m", "wall_time_s")
@@ -157,15 +158,13 @@ def train(dcfg: DictConfig) -> None:
     frames = episodes = updates = 0
     previous_s = 0.0
     if resuming:
-        state = torch.load(ckpt_dir / "last.pt", weights_only=False)
+        state = torch.load(ckpt_dir / "last.pt", weights_only=True)
         loss.load_state_dict(state["loss"])
         actor_opt.load_state_dict(state["actor_opt"])
         critic_opt.load_state_dict(state["critic_opt"])
         frames, episodes, updates = (state["counters"][k] for k in ("frames", "episodes", "updates"))
         previous_s = state["counters"].get("wall_time_s", 0.0)
-        torch.set_rng_state(state["rng"]["torch"])
-        np.random.set_state(state["rng"]["numpy"])
-        random.setstate(state["rng"]["python"])
+        set_rng_states(state["rng"])
         load_buffer(buffer, ckpt_dir)
         truncate_after(out, ckpt_dir, episodes)
         if frames >= cfg.train.max_frames or episodes >= cfg.train.max_episodes:
@@ -261,7 +260,7 @@ def train(dcfg: DictConfig) -> None:
                                     f"{frames / elapsed:.0f} frames/s  {updates / elapsed:.1f} updates/s")
             if frames % cfg.train.checkpoint_every_frames < n:
                 log.sync()
-                save_last(ckpt_dir, loss, actor_opt, critic_opt, buffer, frames, episodes, updates, elapsed)
+                save_last(ckpt_dir, cfg, actor, loss, actor_opt, critic_opt, buffer, frames, episodes, updates, elapsed)
             if episodes >= cfg.train.max_episodes:
                 status = "max_episodes"
                 break
@@ -278,7 +277,7 @@ def train(dcfg: DictConfig) -> None:
         progress.stop()
         collector.shutdown()
         log.sync()
-        save_last(ckpt_dir, loss, actor_opt, critic_opt, buffer, frames, episodes, updates,
+        save_last(ckpt_dir, cfg, actor, loss, actor_opt, critic_opt, buffer, frames, episodes, updates,
                   time.perf_counter() - start)
         log.close()
         writer.close()
@@ -371,17 +370,20 @@ def save_agent(ckpt_dir: Path, actor, row: dict, cfg: Config, saved: list) -> li
     """Save the actor with its episode's reward in name and metadata; keep the best ``keep_saved``."""
     path = ckpt_dir / f"agent_ep{row['episode']:06d}_r{row['reward']:.1f}.pt"
     meta = {k: row[k] for k in ("episode", "frames", "reward", "distance_m", "q0")}
-    atomic_save({"actor": actor.module.state_dict(), "meta": meta, "algo": asdict(cfg.algo)}, path)
+    atomic_save(agent_record(actor.module.state_dict(), cfg, meta), path)
     saved = sorted(saved + [(row["reward"], path)], key=lambda t: -t[0])
     for _, old in saved[cfg.train.keep_saved:]:
         old.unlink(missing_ok=True)
     return saved[: cfg.train.keep_saved]
 
 
-def save_last(ckpt_dir: Path, loss, actor_opt, critic_opt, buffer, frames: int, episodes: int, updates: int,
-              wall_time_s: float) -> None:
-    """Everything a resume needs. The buffer goes first, through a directory swap, then
-    ``last.pt`` atomically, so a crash at any moment leaves a loadable pair."""
+def save_last(ckpt_dir: Path, cfg: Config, actor, loss, actor_opt, critic_opt, buffer, frames: int, episodes: int,
+              updates: int, wall_time_s: float) -> None:
+    """Everything a resume needs, and the final actor as an agent (``pamrun eval`` reads it).
+
+    The buffer goes first, through a directory swap, then ``last.pt`` atomically, so a
+    crash at any moment leaves a loadable pair. Plain data only: loadable with
+    ``weights_only=True``."""
     tmp, live, old = ckpt_dir / "buffer.tmp", ckpt_dir / "buffer", ckpt_dir / "buffer.old"
     shutil.rmtree(tmp, ignore_errors=True)
     buffer.dumps(tmp)
@@ -390,12 +392,28 @@ def save_last(ckpt_dir: Path, loss, actor_opt, critic_opt, buffer, frames: int, 
         os.replace(live, old)
     os.replace(tmp, live)
     shutil.rmtree(old, ignore_errors=True)
+    counters = {"frames": frames, "episodes": episodes, "updates": updates, "wall_time_s": wall_time_s}
     atomic_save(
-        {"loss": loss.state_dict(), "actor_opt": actor_opt.state_dict(), "critic_opt": critic_opt.state_dict(),
-         "counters": {"frames": frames, "episodes": episodes, "updates": updates, "wall_time_s": wall_time_s},
-         "rng": {"torch": torch.get_rng_state(), "numpy": np.random.get_state(), "python": random.getstate()}},
+        {**agent_record(actor.module.state_dict(), cfg, {"frames": frames, "episode": episodes}),
+         "loss": loss.state_dict(), "actor_opt": actor_opt.state_dict(), "critic_opt": critic_opt.state_dict(),
+         "counters": counters, "rng": rng_states()},
         ckpt_dir / "last.pt",
     )
+
+
+def rng_states() -> dict:
+    """Torch, numpy and Python RNG states as tensors, lists and numbers (weights_only-safe)."""
+    np_state = np.random.get_state(legacy=False)
+    np_state["state"]["key"] = np_state["state"]["key"].tolist()
+    return {"torch": torch.get_rng_state(), "numpy": np_state, "python": random.getstate()}
+
+
+def set_rng_states(rng: dict) -> None:
+    torch.set_rng_state(rng["torch"])
+    np_state = dict(rng["numpy"])
+    np_state["state"] = {**np_state["state"], "key": np.asarray(np_state["state"]["key"], dtype=np.uint32)}
+    np.random.set_state(np_state)
+    random.setstate(tuple(tuple(x) if isinstance(x, list) else x for x in rng["python"]))
 
 
 def load_buffer(buffer, ckpt_dir: Path) -> None:

@@ -28,7 +28,7 @@ def test_train_leaves_its_files(tmp_path, algo):
     assert [int(r["episode"]) for r in rows] == list(range(1, len(rows) + 1))
     assert set(rows[0]) >= {"reward", "avg_reward", "q0", "length", "distance_m", "frames", "wall_time_s"}
     assert list((run_dir / "tensorboard").glob("events.out.tfevents.*"))
-    last = torch.load(run_dir / "checkpoints" / "last.pt", weights_only=False)
+    last = torch.load(run_dir / "checkpoints" / "last.pt", weights_only=True)
     assert {k: last["counters"][k] for k in ("frames", "episodes", "updates")} == {
         "frames": 600, "episodes": run["episodes"], "updates": 100}
     # Threshold saves: every episode qualifies, only the best keep_saved stay.
@@ -73,14 +73,14 @@ def test_killed_run_resumes_without_losing_or_duplicating(tmp_path):
     while time.time() < deadline:
         if last.exists():
             try:
-                if torch.load(last, weights_only=False)["counters"]["frames"] >= 600:
+                if torch.load(last, weights_only=True)["counters"]["frames"] >= 600:
                     break
             except Exception:  # being replaced right now: atomic rename, try again
                 pass
         time.sleep(0.5)
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait()
-    killed_at = torch.load(last, weights_only=False)["counters"]
+    killed_at = torch.load(last, weights_only=True)["counters"]
     assert 600 <= killed_at["frames"] < 1400
     assert json.loads((run_dir / "run.json").read_text())["status"] == "running"
 

@@ -1,0 +1,164 @@
+"""Saved agents on disk: what an agent file holds, where to find them, and loading them safely.
+
+An agent file (``checkpoints/agent_ep<N>_r<reward>.pt``, an evaluation's ``best.pt``) is a
+``torch.save`` of plain data only: the actor's weights, the episode it was saved at, the
+algorithm and the robot/task config sections it was trained with, so it can be evaluated
+on its own. ``checkpoints/last.pt`` (the resume state) carries the same ``actor``,
+``algo`` and ``config`` entries. Everything is read with ``torch.load(weights_only=True)``:
+a file that tries to run code, a truncated file or one with the wrong shapes raises
+:class:`CheckpointError` naming the file, never executes anything.
+"""
+
+from __future__ import annotations
+
+import glob
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+AGENT_GLOB = "agent_ep*.pt"
+LAST = "last.pt"
+FORMAT = "pamrun-agent/1"
+# The config sections that define the robot and the task an agent acts in.
+ENV_SECTIONS = ("body", "muscle", "reward", "env")
+
+
+class CheckpointError(Exception):
+    """A checkpoint that cannot be used; ``path`` names the file (or the pattern searched)."""
+
+    def __init__(self, path: str | Path, message: str):
+        self.path, self.message = str(path), message
+        super().__init__(f"{path}: {message}")
+
+
+@dataclass
+class Agent:
+    """An actor loaded from a checkpoint, with what it was trained on."""
+
+    path: Path
+    label: str  # "<run dir name>/<file stem>": unique and readable in tables
+    actor_state: dict[str, Any]  # state_dict of pamrun.agents.ThesisActor
+    hidden_sizes: list[int]
+    meta: dict[str, Any]  # training episode, frames, reward, ... at the time of saving
+    config: dict[str, dict] | None  # ENV_SECTIONS as plain dicts, None if unknown
+
+    @property
+    def run_dir(self) -> Path | None:
+        """The training run the file belongs to (``<run>/checkpoints/<file>``), if any."""
+        return self.path.parent.parent if self.path.parent.name == "checkpoints" else None
+
+
+def agent_record(actor_state: dict, cfg, meta: dict) -> dict:
+    """The content of an agent file: weights, metadata and the run's algo and env config."""
+    return {
+        "format": FORMAT,
+        "actor": actor_state,
+        "meta": dict(meta),
+        "algo": asdict(cfg.algo),
+        "config": {k: asdict(getattr(cfg, k)) for k in ENV_SECTIONS},
+    }
+
+
+def find_checkpoints(spec: str, include_last: bool = True) -> list[Path]:
+    """Checkpoint files named by ``spec``: a file, a run directory, a folder of runs or a glob.
+
+    A run directory gives its threshold-saved agents and, with ``include_last``, its final
+    agent (``checkpoints/last.pt``). A folder holding several runs (a sweep) gives those
+    of every run below it. Raises CheckpointError when nothing is found.
+    """
+    if not spec:
+        raise CheckpointError("ckpt", "no checkpoint given: pass ckpt=<file, run directory or glob>")
+    paths = [Path(p) for p in sorted(glob.glob(spec, recursive=True))] if glob.has_magic(spec) else [Path(spec)]
+    if not glob.has_magic(spec) and not paths[0].exists():
+        raise CheckpointError(spec, "no such file or directory")
+    found: list[Path] = []
+    for path in paths:
+        found += [path] if path.is_file() else _in_directory(path, include_last)
+    unique = list(dict.fromkeys(p.resolve() for p in found))
+    if not unique:
+        raise CheckpointError(spec, f"no checkpoints found (looked for {AGENT_GLOB}"
+                                    f"{' and ' + LAST if include_last else ''} in run directories)")
+    return unique
+
+
+def _in_directory(path: Path, include_last: bool) -> list[Path]:
+    folders = [path / "checkpoints", path] if (path / "checkpoints").is_dir() else [path]
+    for folder in folders:
+        files = sorted(folder.glob(AGENT_GLOB)) + ([folder / LAST] if include_last and (folder / LAST).exists() else [])
+        if files:
+            return files
+    # A folder of runs (a sweep): every run below it.
+    runs = sorted({p.parent.parent for p in path.glob(f"**/checkpoints/{LAST}")}
+                  | {p.parent.parent for p in path.glob(f"**/checkpoints/{AGENT_GLOB}")})
+    return [f for run in runs for f in _in_directory(run, include_last)]
+
+
+def load_agent(path: str | Path, obs_size: int, action_size: int) -> Agent:
+    """Read an agent without executing code; check it fits an env with these sizes."""
+    import torch
+
+    path = Path(path)
+    try:
+        data = torch.load(path, map_location="cpu", weights_only=True)
+    except FileNotFoundError:
+        raise CheckpointError(path, "no such file") from None
+    except Exception as err:  # truncated zip, foreign pickle, code objects: all refused alike
+        first = str(err).strip().splitlines()[0][:200] if str(err).strip() else ""
+        raise CheckpointError(path, f"not a readable pamrun checkpoint ({type(err).__name__}: {first})") from None
+    if not isinstance(data, dict) or not isinstance(data.get("actor"), dict):
+        raise CheckpointError(path, "holds no actor weights (not an agent file or last.pt written by pamrun)")
+    state = data["actor"]
+    shapes = {k: tuple(v.shape) for k, v in state.items() if isinstance(v, torch.Tensor)}
+    needed = ("net.0.weight", "net.2.weight", "net.4.weight")
+    if any(k not in shapes or len(shapes[k]) != 2 for k in needed):
+        raise CheckpointError(path, f"actor weights do not have the thesis actor's layers {list(needed)}")
+    (h0, n_obs), (h1, _), (n_act, _) = (shapes[k] for k in needed)
+    if n_obs != obs_size:
+        raise CheckpointError(path, f"actor takes {n_obs} observations, PamWalker-v0 gives {obs_size}: "
+                                    "trained with an incompatible observation layout")
+    if n_act != action_size:
+        raise CheckpointError(path, f"actor gives {n_act} actions, PamWalker-v0 takes {action_size}")
+    if not all(bool(torch.isfinite(v).all()) for v in state.values() if isinstance(v, torch.Tensor)):
+        raise CheckpointError(path, "actor weights are not finite (NaN or inf)")
+    meta = dict(data.get("meta") or {})
+    if "counters" in data:  # last.pt
+        meta.setdefault("frames", data["counters"].get("frames"))
+        meta.setdefault("episode", data["counters"].get("episodes"))
+    config = data.get("config")
+    if config is None:
+        config = _run_config(path)
+    return Agent(path=path, label=label_of(path), actor_state=state, hidden_sizes=[h0, h1], meta=meta,
+                 config=config)
+
+
+def _run_config(path: Path) -> dict[str, dict] | None:
+    """ENV_SECTIONS of the run a checkpoint sits in (``<run>/pamrun_config.yaml``), if there."""
+    import yaml
+
+    run_cfg = path.parent.parent / "pamrun_config.yaml"
+    if path.parent.name != "checkpoints" or not run_cfg.exists():
+        return None
+    data = yaml.safe_load(run_cfg.read_text()) or {}
+    return {k: data[k] for k in ENV_SECTIONS if k in data} or None
+
+
+def label_of(path: Path) -> str:
+    """``<run dir name>/<stem>`` for files in a run's checkpoints/, else ``<folder>/<stem>``."""
+    owner = path.parent.parent if path.parent.name == "checkpoints" else path.parent
+    return f"{owner.name}/{path.stem}"
+
+
+def unique_labels(agents: list[Agent]) -> None:
+    """Make labels unique in place (two runs of the same name in different folders)."""
+    seen: dict[str, int] = {}
+    for agent in agents:
+        n = seen.get(agent.label, 0)
+        seen[agent.label] = n + 1
+        if n:
+            agent.label = f"{agent.label}#{n + 1}"
+
+
+def finite_or_none(value: float) -> float | None:
+    """JSON has no NaN: None for a missing or non-finite number."""
+    return None if value is None or not math.isfinite(value) else float(value)
