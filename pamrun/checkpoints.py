@@ -12,7 +12,6 @@ a file that tries to run code, a truncated file or one with the wrong shapes rai
 from __future__ import annotations
 
 import glob
-import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -42,6 +41,7 @@ class Agent:
     hidden_sizes: list[int]
     meta: dict[str, Any]  # training episode, frames, reward, ... at the time of saving
     config: dict[str, dict] | None  # ENV_SECTIONS as plain dicts, None if unknown
+    algo: dict[str, Any] | None = None
 
     @property
     def run_dir(self) -> Path | None:
@@ -129,7 +129,21 @@ def load_agent(path: str | Path, obs_size: int, action_size: int) -> Agent:
     if config is None:
         config = _run_config(path)
     return Agent(path=path, label=label_of(path), actor_state=state, hidden_sizes=[h0, h1], meta=meta,
-                 config=config)
+                 config=config, algo=data.get("algo"))
+
+
+def save_agent_copy(agent: Agent, path: Path, **extra_meta) -> Path:
+    """Write ``agent`` as a stand-alone agent file (e.g. an evaluation's ``best.pt``), atomically."""
+    import os
+
+    import torch
+
+    record = {"format": FORMAT, "actor": agent.actor_state, "meta": {**agent.meta, **extra_meta},
+              "algo": agent.algo, "config": agent.config}
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    torch.save(record, tmp)
+    os.replace(tmp, path)
+    return path
 
 
 def _run_config(path: Path) -> dict[str, dict] | None:
@@ -157,8 +171,3 @@ def unique_labels(agents: list[Agent]) -> None:
         seen[agent.label] = n + 1
         if n:
             agent.label = f"{agent.label}#{n + 1}"
-
-
-def finite_or_none(value: float) -> float | None:
-    """JSON has no NaN: None for a missing or non-finite number."""
-    return None if value is None or not math.isfinite(value) else float(value)

@@ -23,6 +23,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "body": ("pamrun.lab", "body", "generate the robot: robot.xml, body.json, robot.png (thesis §8.1-8.2)"),
     "openloop": ("pamrun.lab", "openloop", "pressure steps on each joint, torso fixed (thesis §10.2)"),
     "train": ("pamrun.train", "train", "train DDPG or TD3 on PamWalker-v0 with TorchRL (thesis §9)"),
+    "eval": ("pamrun.evaluate", "evaluate", "test saved agents in parallel, rank them, pick the best: ckpt=<path>"),
     "plot training": ("pamrun.train", "plot_training", "redraw training.png of a run: dir=<run dir>"),
 }
 

@@ -373,6 +373,57 @@ class TrainConfig:
         _require(self.init_random_frames >= 0, "init_random_frames", "must be >= 0")
 
 
+@dataclass
+class EvalConfig:
+    """``pamrun eval``: how saved agents are tested and ranked (thesis §10.3).
+
+    Every agent runs ``episodes`` episodes with its deterministic policy (no exploration
+    noise), episode k from seed ``seed + k`` for every agent, so the comparison is fair.
+    The start pose gets uniform joint-angle noise of ``reset_noise_rad`` (not in the
+    thesis, which tested from the nominal pose: with 0 every episode is the same). Each
+    agent acts in the robot and task it was trained on (the config stored with it) unless
+    ``use_agent_env`` is false; then the command line's groups apply.
+    """
+
+    episodes: int = 10
+    workers: int = 0  # evaluation processes; 0 = one per CPU core
+    seed: int = 0
+    reset_noise_rad: float = 0.01
+    reset_velocity_noise: float = 0.0
+    episode_s: float = 10.0  # Tf (§9)
+    # Walk test (§10.3): walk walk_duration_s without falling, never leaving |y| <= walk_lateral_m.
+    walk_duration_s: float = 10.0
+    walk_lateral_m: float = 0.5
+    # Leaderboard order: aggregate names, best first; a leading '-' ranks that one ascending.
+    rank_by: list[str] = field(default_factory=lambda: ["walk_pass_rate", "distance_mean"])
+    include_last: bool = True  # a run directory's final agent (checkpoints/last.pt) competes too
+    use_agent_env: bool = True
+    top_k: int = 5  # agents drawn in trajectories.png
+    save_steps: bool = True  # per-step data in episodes.jsonl
+    render: bool = False  # mp4 of the best agent's first episode
+    video_width: int = 640
+    video_height: int = 480
+
+    def __post_init__(self) -> None:
+        from pamrun.evaluate import RANK_METRICS
+
+        for name in ("episodes", "top_k"):
+            _require(getattr(self, name) >= 1, name, f"must be >= 1, got {getattr(self, name)}")
+        _require(self.workers >= 0, "workers", f"must be >= 0 (0 = one per core), got {self.workers}")
+        _require(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
+        _non_negative(self, "reset_noise_rad", "reset_velocity_noise")
+        _positive(self, "episode_s", "walk_duration_s", "walk_lateral_m")
+        _require(self.walk_duration_s <= self.episode_s + 1e-9, "walk_duration_s",
+                 f"must be <= episode_s ({self.episode_s} s): an episode ends before the test could pass")
+        _require(len(self.rank_by) >= 1, "rank_by", "needs at least one metric")
+        for name in self.rank_by:
+            _require(name.lstrip("-") in RANK_METRICS, "rank_by",
+                     f"unknown metric {name!r}; known: {', '.join(RANK_METRICS)} (prefix '-' for ascending)")
+        for name in ("video_width", "video_height"):
+            value = getattr(self, name)
+            _require(16 <= value <= 1280 and value % 2 == 0, name, f"must be even and in [16, 1280], got {value}")
+
+
 # --------------------------------------------------------------------------- experiments
 
 
@@ -432,6 +483,8 @@ class Config:
     train: TrainConfig = field(default_factory=TrainConfig)
     resume: str = ""  # a run directory to continue from its last checkpoint
     dir: str = ""  # a run directory, for commands that read one (pamrun plot training)
+    ckpt: str = ""  # pamrun eval: a checkpoint, a run directory, a folder of runs or a glob
+    eval: EvalConfig = field(default_factory=EvalConfig)
     pair: PairConfig = field(default_factory=PairConfig)
 
     def __post_init__(self) -> None:
@@ -490,5 +543,21 @@ class ValidateConfig(Callback):
 def _validate_or_exit(config: DictConfig) -> None:
     try:
         validate(config)
+        check_command(config)
     except ConfigError as err:
         raise SystemExit(f"pamrun: invalid configuration: {err}") from None
+
+
+def check_command(config: DictConfig) -> None:
+    """What one command needs beyond valid values, checked before its directory exists.
+
+    ``pamrun eval``: ``ckpt`` must name at least one checkpoint file.
+    """
+    job = OmegaConf.select(config, "hydra.job.name", default="")
+    if job == "eval":
+        from pamrun.checkpoints import CheckpointError, find_checkpoints
+
+        try:
+            find_checkpoints(config.ckpt, config.eval.include_last)
+        except CheckpointError as err:
+            raise ConfigError("ckpt", str(err)) from None

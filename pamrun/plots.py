@@ -119,3 +119,86 @@ def training_curves(csv_path: Path, png_path: Path) -> Path:
     fig.savefig(png_path, dpi=110)
     plt.close(fig)
     return Path(png_path)
+
+
+def read_episodes(jsonl_path: Path, agents: set[str] | None = None) -> list[dict]:
+    """Episode records of an evaluation (``episodes.jsonl``), optionally of some agents only."""
+    prefixes = None if agents is None else tuple('{"agent": ' + json.dumps(a) + "," for a in agents)
+    with Path(jsonl_path).open() as fh:
+        return [json.loads(line) for line in fh if prefixes is None or line.startswith(prefixes)]
+
+
+def trajectories(jsonl_path: Path, leaderboard_path: Path, png_path: Path, top_k: int = 5,
+                 lateral_m: float = 0.5) -> Path:
+    """x-y paths of the best ``top_k`` agents with the lateral band (thesis Fig. 10.25).
+
+    Each agent's first episode is drawn solid, its other episodes faint.
+    """
+    board = json.loads(Path(leaderboard_path).read_text())
+    top = [row["agent"] for row in board["agents"][:top_k]]
+    episodes = read_episodes(jsonl_path, set(top))
+    fig, ax = plt.subplots(figsize=(9, 4.5))
+    colors = plt.cm.tab10(np.arange(len(top)) % 10)
+    x_max = 1.0
+    for color, row in zip(colors, board["agents"][:top_k]):
+        mine = [e for e in episodes if e["agent"] == row["agent"]]
+        for e in mine:
+            x, y = np.asarray(e["steps"]["x_m"]), np.asarray(e["steps"]["y_m"])
+            first = e["episode"] == 0
+            ax.plot(x, y, color=color, lw=1.6 if first else 0.6, alpha=1.0 if first else 0.35,
+                    label=f"#{row['rank']} {row['agent']} ({row['distance_mean']:.2f} m)" if first else None)
+            ax.plot(x[-1], y[-1], "x" if e["fell"] else "o", color=color, ms=5 if first else 3)
+            x_max = max(x_max, float(np.max(x)))
+    ax.axhspan(-lateral_m, lateral_m, color="tab:green", alpha=0.07, label=f"±{lateral_m} m band")
+    for yb in (-lateral_m, lateral_m):
+        ax.axhline(yb, color="tab:green", lw=1, ls="--")
+    ax.axhline(0.0, color="k", lw=0.8, ls=":", label="straight line")
+    ax.set_xlim(min(-0.1, ax.get_xlim()[0]), x_max * 1.05)
+    ax.set_ylim(-1.6 * lateral_m, 1.6 * lateral_m)
+    ax.set_xlabel("x, forward [m]")
+    ax.set_ylabel("y, lateral [m]")
+    ax.set_title(f"Paths of the best {len(top)} agents (o: end, x: fall; thesis Fig. 10.25)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=110)
+    plt.close(fig)
+    return Path(png_path)
+
+
+def pressures(jsonl_path: Path, agent: str, episode: int, png_path: Path) -> Path:
+    """Both muscle pressures of every joint pair, with the joint angle, over one episode
+    (thesis Figs 10.26-10.31): rows are joints, columns the right and left leg."""
+    from pamrun.body import LEG_JOINTS, SIDES
+
+    record = next(e for e in read_episodes(jsonl_path, {agent}) if e["episode"] == episode)
+    s = record["steps"]
+    t = np.asarray(s["t_s"])
+    p = np.asarray(s["pressure_kpa"]).reshape(len(t), -1, 2) / 100.0  # bar
+    angle = np.rad2deg(np.asarray(s["joint_angle_rad"]))
+    fig, axes = plt.subplots(len(LEG_JOINTS), len(SIDES), figsize=(11, 11), sharex=True, squeeze=False)
+    for col, side in enumerate(SIDES):
+        for row, joint in enumerate(LEG_JOINTS):
+            j = col * len(LEG_JOINTS) + row
+            ax = axes[row, col]
+            ax.plot(t, p[:, j, 0], color="tab:blue", lw=1, label="muscle 1 (+)")
+            ax.plot(t, p[:, j, 1], color="tab:red", lw=1, label="muscle 2 (-)")
+            ax.set_ylabel("pressure [bar]", fontsize=8)
+            ax.set_title(f"{side} {joint.replace('_', ' ')}", fontsize=9)
+            ax.grid(alpha=0.3)
+            twin = ax.twinx()
+            twin.plot(t, angle[:, j], color="k", lw=0.8, alpha=0.7, label="angle")
+            twin.set_ylabel("angle [deg]", fontsize=8)
+            if row == 0 and col == 0:
+                lines = ax.get_lines()[:2] + twin.get_lines()
+                ax.legend(lines, [ln.get_label() for ln in lines], fontsize=7, loc="upper right")
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]")
+    outcome = "fell" if record["fell"] else "no fall"
+    fig.suptitle(f"Muscle pressures of {agent}, episode {episode} (seed {record['seed']}): "
+                 f"{record['distance_m']:.2f} m in {record['duration_s']:.2f} s, {outcome} (thesis Figs 10.26-10.31)",
+                 fontsize=10)
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=100)
+    plt.close(fig)
+    return Path(png_path)

@@ -295,26 +295,27 @@ def train(dcfg: DictConfig) -> None:
 class Progress:
     """A rich progress bar with ETA on a terminal; a plain line every ~10 s otherwise (CI, files)."""
 
-    def __init__(self, console, total_frames: int, done_frames: int):
+    def __init__(self, console, total: int, done: int, unit: str = "frames"):
         self.console = console
+        self.unit = unit
         self.bar = None
         self.last_line = 0.0
         if console.is_terminal:
             from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
             from rich.progress import Progress as RichProgress
 
-            self.bar = RichProgress(TextColumn("frames"), BarColumn(), MofNCompleteColumn(),
+            self.bar = RichProgress(TextColumn(unit), BarColumn(), MofNCompleteColumn(),
                                     TextColumn("{task.fields[info]}"), TimeElapsedColumn(), TextColumn("ETA"),
                                     TimeRemainingColumn(), console=console)
-            self.task = self.bar.add_task("train", total=total_frames, completed=done_frames, info="")
+            self.task = self.bar.add_task(unit, total=total, completed=done, info="")
             self.bar.start()
 
-    def update(self, frames: int, info: str) -> None:
+    def update(self, done: int, info: str) -> None:
         if self.bar is not None:
-            self.bar.update(self.task, completed=frames, info=info)
+            self.bar.update(self.task, completed=done, info=info)
         elif time.monotonic() - self.last_line > 10:
             self.last_line = time.monotonic()
-            self.console.print(f"frames {frames}  {info}", soft_wrap=True)
+            self.console.print(f"{self.unit} {done}  {info}", soft_wrap=True)
 
     def stop(self) -> None:
         if self.bar is not None:
