@@ -12,6 +12,8 @@ a file that tries to run code, a truncated file or one with the wrong shapes rai
 from __future__ import annotations
 
 import glob
+import pickle
+import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -100,12 +102,18 @@ def load_agent(path: str | Path, obs_size: int, action_size: int) -> Agent:
 
     path = Path(path)
     try:
-        data = torch.load(path, map_location="cpu", weights_only=True)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # torch's note on foreign pickle protocols
+            data = torch.load(path, map_location="cpu", weights_only=True)
     except FileNotFoundError:
         raise CheckpointError(path, "no such file") from None
-    except Exception as err:  # truncated zip, foreign pickle, code objects: all refused alike
-        first = str(err).strip().splitlines()[0][:200] if str(err).strip() else ""
-        raise CheckpointError(path, f"not a readable pamrun checkpoint ({type(err).__name__}: {first})") from None
+    except pickle.UnpicklingError:
+        raise CheckpointError(path, "refused by the safe loader: not tensors and plain data in torch's format "
+                                    "(e.g. a pickle that would run code); nothing was executed") from None
+    except Exception as err:  # truncated or corrupt zip, not a torch file at all
+        first = str(err).strip().splitlines()[0][:120] if str(err).strip() else ""
+        raise CheckpointError(path, f"truncated or corrupt, not a complete torch checkpoint "
+                                    f"({type(err).__name__}: {first})") from None
     if not isinstance(data, dict) or not isinstance(data.get("actor"), dict):
         raise CheckpointError(path, "holds no actor weights (not an agent file or last.pt written by pamrun)")
     state = data["actor"]

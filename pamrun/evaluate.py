@@ -82,7 +82,7 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
     regulator, drive = env.drive.pairs.regulator, env.drive
     command = regulator.target_pressure_kpa(drive.voltage_v)
     steps = {k: [] for k in ("x_m", "y_m", "z_m", "joint_angle_rad", "pressure_kpa", "action")}
-    total, change, max_y, fell = 0.0, 0.0, abs(float(info["y"])), False
+    total, change, max_y, fell = 0.0, 0.0, 0.0, False
     if frame_sink:
         frame_sink(env.render())
     while True:
@@ -347,7 +347,7 @@ def evaluate(dcfg) -> None:
 
     def tick() -> None:
         done[0] += 1
-        progress.update(done[0], "")
+        progress.update(done[0], f"of {len(agents) * ecfg.episodes}")
 
     try:
         results = evaluate_agents(agents, kwargs, ecfg.episodes, ecfg.seed, workers, on_episode=tick)
