@@ -157,6 +157,8 @@ def _torch_threads(n: int):
 def evaluate_agents(agents: list[Agent], kwargs: list[dict], episodes: int, seed: int, workers: int,
                     on_episode: Callable[[], None] | None = None) -> list[list[dict]]:
     """Episode results per agent, ``[agent][episode]``, the same for any number of workers."""
+    import pamrun.agents  # noqa: F401  (torch and TorchRL imported once here, inherited by forked workers)
+
     tasks = [(i, k) for i in range(len(agents)) for k in range(episodes)]
     results: list[list[dict | None]] = [[None] * episodes for _ in agents]
     if workers <= 1:
@@ -338,6 +340,8 @@ def evaluate(dcfg) -> None:
     if not agents:
         raise SystemExit(f"pamrun: no usable checkpoint in {cfg.ckpt} ({len(errors)} unreadable; see above)")
     workers = min(ecfg.workers or os.cpu_count() or 1, len(agents) * ecfg.episodes)
+    import pamrun.agents  # noqa: F401  (imported before the clock starts)
+
     console.print(f"Evaluating {len(agents)} agent(s) x {ecfg.episodes} episode(s), seeds {ecfg.seed}.."
                   f"{ecfg.seed + ecfg.episodes - 1}, on {workers} worker(s)")
 
