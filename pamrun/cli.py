@@ -24,8 +24,15 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "openloop": ("pamrun.lab", "openloop", "pressure steps on each joint, torso fixed (thesis §10.2)"),
     "train": ("pamrun.train", "train", "train DDPG or TD3 on PamWalker-v0 with TorchRL (thesis §9)"),
     "eval": ("pamrun.evaluate", "evaluate", "test saved agents in parallel, rank them, pick the best: ckpt=<path>"),
+    "sweep": ("pamrun.sweep", "job", "trainings over a grid (-m a=1,2 b=x,y), each evaluated, summary at the end"),
+    "sweep summarize": ("pamrun.sweep", "summarize_command", "summary table and curves of a sweep: dir=<sweep dir>"),
+    "sweep optuna": ("pamrun.search", "optuna_search", "Optuna search, each trial averaged over seeds (sweep.optuna)"),
     "plot training": ("pamrun.train", "plot_training", "redraw training.png of a run: dir=<run dir>"),
 }
+# Commands composed from another primary config than conf/config.yaml.
+CONFIG_NAMES = {"sweep": "sweep"}
+# Commands that only read a directory (dir=...): they write nothing of Hydra's there.
+READ_ONLY = ("sweep summarize", "plot training")
 
 
 def usage() -> str:
@@ -79,9 +86,34 @@ def run_hydra_app(name: str, args: list[str]) -> None:
     resume = [a.split("=", 1)[1] for a in args if a.startswith("resume=")]
     if resume:  # continue in the run's own directory; keep its original .hydra/ untouched
         args = [*args, f"hydra.run.dir={resume[-1]}", "hydra.output_subdir=.hydra-resume"]
-    sys.argv = [f"pamrun {name}", f"hydra.job.name={job_name}", *args]
-    app = hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")(task)
+    if name == "sweep":
+        args = sweep_args(args)
+    if name in READ_ONLY:
+        folder = [a.split("=", 1)[1] for a in args if a.startswith("dir=")]
+        if folder and not any(a.startswith("hydra.run.dir=") for a in args):
+            args = [*args, f"hydra.run.dir={folder[-1]}", "hydra.output_subdir=null", "hydra/job_logging=stdout"]
+    # argparse takes one run of overrides: flags (and their values) first, then every key=value.
+    overrides = [a for a in args if "=" in a and not a.startswith("-")]
+    flags = [a for a in args if a not in overrides]
+    sys.argv = [f"pamrun {name}", *flags, f"hydra.job.name={job_name}", *overrides]
+    config_name = CONFIG_NAMES.get(name, "config")
+    app = hydra.main(config_path=str(CONF_DIR), config_name=config_name, version_base="1.3")(task)
     app()
+
+
+def sweep_args(args: list[str]) -> list[str]:
+    """A sweep is always a multirun, in a folder named by its command line (see pamrun.sweep)."""
+    from pamrun.sweep import swept_keys, sweep_dir_for
+
+    if not {"-m", "--multirun", "--cfg", "-c", "--info", "-i", "--help", "-h", "--hydra-help"} & set(args):
+        args = ["-m", *args]
+    if not any(a.startswith("hydra.sweep.dir=") for a in args):
+        folder = sweep_dir_for(args)
+        print(f"Sweep directory: {folder}")
+        args = [*args, f"hydra.sweep.dir={folder}"]
+    # Job folders are named by the swept overrides only (the rest is the same for all jobs).
+    fixed = swept_keys(args)[1] + ["sweep.jobs", "eval.workers", "train.threads"]
+    return [*args, f"hydra.job.config.override_dirname.exclude_keys=[{','.join(fixed)}]"]
 
 
 if __name__ == "__main__":

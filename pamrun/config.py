@@ -253,17 +253,17 @@ class BodyConfig:
 class RewardConfig:
     """Per-step reward weights (thesis Table 9.3).
 
-    r = k_vx Vx - k_y y^2 - k_z (z - z0)^2 - k_v sum(a_prev^2) + k_t Ts / Tf
+    r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf
     """
 
-    k_vx: float = 1.0
-    k_y: float = 4.0
-    k_z: float = 60.0
-    k_v: float = 0.02
-    k_t: float = 25.0
+    kvx: float = 1.0
+    ky: float = 4.0
+    kz: float = 60.0
+    kv: float = 0.02
+    kt: float = 25.0
 
     def __post_init__(self) -> None:
-        for name in ("k_vx", "k_y", "k_z", "k_v", "k_t"):
+        for name in ("kvx", "ky", "kz", "kv", "kt"):
             _require(math.isfinite(getattr(self, name)), name, "must be finite")
 
 
@@ -359,6 +359,7 @@ class TrainConfig:
     save_threshold: float = 250.0  # save every agent whose episode reward reaches it (§9.5)
     keep_saved: int = 10  # keep the best this many threshold saves
     workers: int = 1  # collector processes (the thesis used 8)
+    threads: int = 0  # torch threads of the learner; 0 = the cores the collectors leave free
     frames_per_batch: int = 200
     init_random_frames: int = 2000  # uniform random actions before learning starts
     updates_per_frame: float = 1.0
@@ -371,6 +372,7 @@ class TrainConfig:
             _require(getattr(self, name) >= 1, name, f"must be >= 1, got {getattr(self, name)}")
         _non_negative(self, "max_minutes", "updates_per_frame")
         _require(self.init_random_frames >= 0, "init_random_frames", "must be >= 0")
+        _require(self.threads >= 0, "threads", f"must be >= 0 (0 = automatic), got {self.threads}")
 
 
 @dataclass
@@ -422,6 +424,59 @@ class EvalConfig:
         for name in ("video_width", "video_height"):
             value = getattr(self, name)
             _require(16 <= value <= 1280 and value % 2 == 0, name, f"must be even and in [16, 1280], got {value}")
+
+
+# Per-job results a sweep summarises and Optuna can optimise (see pamrun/sweep.py).
+JOB_METRICS = ("final_avg_reward", "best_distance_m", "walk_pass_rate", "frames_to_first_save")
+
+
+@dataclass
+class OptunaConfig:
+    """``pamrun sweep optuna``: hyperparameter search whose objective averages seeds.
+
+    ``params`` maps a Hydra override key to its search space: ``float:LOW:HIGH``,
+    ``log:LOW:HIGH`` (log-uniform), ``int:LOW:HIGH`` or ``choice:A,B,...`` (a config group
+    such as ``algo`` takes ``choice:ddpg,td3``). Each trial is a ``pamrun sweep -m`` over
+    ``seeds``; its value is the mean of ``sweep.metric`` over them. The study lives in
+    ``study.db`` (SQLite) in the study directory, so the same command resumes it.
+    """
+
+    trials: int = 10
+    seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
+    params: dict[str, str] = field(default_factory=dict)
+    sampler_seed: int = 0
+
+    def __post_init__(self) -> None:
+        _require(self.trials >= 1, "trials", f"must be >= 1, got {self.trials}")
+        _require(len(self.seeds) >= 1 and min(self.seeds) >= 0, "seeds", "needs one or more seeds >= 0")
+        for key, spec in self.params.items():
+            kind, _, rest = str(spec).partition(":")
+            ok = kind == "choice" and rest != ""
+            if kind in ("float", "log", "int"):
+                try:
+                    low, high = (float(v) for v in rest.split(":"))
+                    ok = low < high and (kind != "log" or low > 0)
+                except ValueError:
+                    ok = False
+            _require(ok, f"params.{key}",
+                     f"must be float:LOW:HIGH, log:LOW:HIGH (LOW > 0), int:LOW:HIGH or choice:A,B,..., got {spec!r}")
+
+
+@dataclass
+class SweepConfig:
+    """``pamrun sweep``: several trainings side by side, each evaluated, and their summary."""
+
+    jobs: int = 0  # trainings at once on this machine; 0 = the cores / each job's train.workers
+    # Overrides that repeat a setting rather than define one: the summary groups over them.
+    group_exclude: list[str] = field(default_factory=lambda: ["seed"])
+    metric: str = "final_avg_reward"  # what "better" means in the summary's verdict and for Optuna
+    direction: str = "maximize"
+    optuna: OptunaConfig = field(default_factory=OptunaConfig)
+
+    def __post_init__(self) -> None:
+        _require(self.jobs >= 0, "jobs", f"must be >= 0 (0 = automatic), got {self.jobs}")
+        _require(self.metric in JOB_METRICS, "metric", f"unknown {self.metric!r}; known: {', '.join(JOB_METRICS)}")
+        _require(self.direction in ("maximize", "minimize"), "direction", "must be maximize or minimize")
 
 
 # --------------------------------------------------------------------------- experiments
@@ -485,6 +540,7 @@ class Config:
     dir: str = ""  # a run directory, for commands that read one (pamrun plot training)
     ckpt: str = ""  # pamrun eval: a checkpoint, a run directory, a folder of runs or a glob
     eval: EvalConfig = field(default_factory=EvalConfig)
+    sweep: SweepConfig = field(default_factory=SweepConfig)
     pair: PairConfig = field(default_factory=PairConfig)
 
     def __post_init__(self) -> None:
@@ -494,6 +550,18 @@ class Config:
 def register_configs() -> None:
     """Register the root schema; every group's YAML is merged into its typed field."""
     ConfigStore.instance().store(name="pamrun_schema", node=Config)
+
+
+def parallel_jobs(jobs: int, workers_per_job: int) -> int:
+    """Sweep jobs to run side by side: ``jobs``, or (0) the cores each job's workers leave."""
+    import os
+
+    return int(jobs) if int(jobs) > 0 else max(1, (os.cpu_count() or 1) // max(1, int(workers_per_job)))
+
+
+# Used by conf/sweep.yaml (registered on import: sweep jobs compose their config in worker processes).
+OmegaConf.register_new_resolver("pamrun_jobs", parallel_jobs, replace=True)
+OmegaConf.register_new_resolver("pamrun_job_dir", lambda name: name or "default", replace=True)
 
 
 def validate(cfg: DictConfig, path: str = "") -> None:
@@ -536,8 +604,10 @@ class ValidateConfig(Callback):
         _validate_or_exit(config)
 
     def on_job_start(self, config: DictConfig, **kwargs: Any) -> None:
-        # Multirun jobs are composed inside the launcher; a bad one fails alone.
-        _validate_or_exit(config)
+        # Multirun jobs are composed inside the launcher; a bad one fails alone. A sweep job
+        # validates inside its task instead, so the failure is recorded and the others go on.
+        if OmegaConf.select(config, "hydra.job.name", default="") != "sweep":
+            _validate_or_exit(config)
 
 
 def _validate_or_exit(config: DictConfig) -> None:

@@ -2,7 +2,7 @@
 
 The MuJoCo body of :mod:`pamrun.body` driven by the 20 muscles of
 :mod:`pamrun.actuation`. Every constant is a keyword argument whose default is the
-thesis value, so ``gymnasium.make("pamrun/PamWalker-v0", reward={"k_z": 30})`` works
+thesis value, so ``gymnasium.make("pamrun/PamWalker-v0", reward={"kz": 30})`` works
 without Hydra; the Hydra groups ``body``, ``muscle``, ``reward`` and ``env`` map onto the
 keyword arguments of the same names.
 
@@ -30,7 +30,7 @@ torques held between muscle steps (``mj_step`` with ``nstep``, no Python per phy
 | 33-42 | the previous action | 1 |
 
 ## Reward (thesis Table 9.3, config group ``reward``)
-r = k_vx Vx - k_y y^2 - k_z (z - z0)^2 - k_v sum(a_prev^2) + k_t Ts / Tf, with Vx the
+r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf, with Vx the
 torso's forward velocity, y its lateral deviation, z - z0 its height change since reset
 and a_prev the action applied in this step (the "previous action" of the next
 observation). Each term is in ``info["reward_terms"]``.
@@ -245,11 +245,11 @@ class PamWalkerEnv(gym.Env):
             return 0.0, terms
         pos, _, lin_vel, _ = self._torso_state()
         terms = {
-            "forward": k.k_vx * float(lin_vel[0]),
-            "lateral": -k.k_y * float(pos[1]) ** 2,
-            "height": -k.k_z * (float(pos[2]) - self.z0) ** 2,
-            "effort": -k.k_v * float(np.sum(action**2)),
-            "alive": k.k_t * cfg.control_dt_s / cfg.episode_s,
+            "forward": k.kvx * float(lin_vel[0]),
+            "lateral": -k.ky * float(pos[1]) ** 2,
+            "height": -k.kz * (float(pos[2]) - self.z0) ** 2,
+            "effort": -k.kv * float(np.sum(action**2)),
+            "alive": k.kt * cfg.control_dt_s / cfg.episode_s,
         }
         return float(sum(terms.values())), terms
 

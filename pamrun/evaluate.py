@@ -322,23 +322,29 @@ def load_agents(spec: str, cfg) -> tuple[list[Agent], list[dict], list[dict]]:
 
 def evaluate(dcfg) -> None:
     """The Hydra task of ``pamrun eval``."""
+    from pamrun.config import to_object
+    from pamrun.lab import run_dir
+
+    cfg = to_object(dcfg)
+    run_evaluation(cfg, cfg.ckpt, run_dir())
+
+
+def run_evaluation(cfg, spec: str, out: Path) -> dict:
+    """Evaluate the agents named by ``spec`` into ``out``; the selection (selection.json's content)."""
     from rich.console import Console
 
     from pamrun import plots
     from pamrun.checkpoints import save_agent_copy
-    from pamrun.config import to_object
-    from pamrun.lab import run_dir
     from pamrun.train import Progress
 
     console = Console() if Console().is_terminal else Console(width=160)  # logs keep whole rows
-    cfg = to_object(dcfg)
     ecfg = cfg.eval
-    out = run_dir()
-    agents, kwargs, errors = load_agents(cfg.ckpt, cfg)
+    out.mkdir(parents=True, exist_ok=True)
+    agents, kwargs, errors = load_agents(spec, cfg)
     for err in errors:
         console.print(f"[red]skipped[/red] {err['path']}: {err['error']}", soft_wrap=True)
     if not agents:
-        raise SystemExit(f"pamrun: no usable checkpoint in {cfg.ckpt} ({len(errors)} unreadable; see above)")
+        raise SystemExit(f"pamrun: no usable checkpoint in {spec} ({len(errors)} unreadable; see above)")
     workers = min(ecfg.workers or os.cpu_count() or 1, len(agents) * ecfg.episodes)
     import pamrun.agents  # noqa: F401  (imported before the clock starts)
 
@@ -373,7 +379,7 @@ def evaluate(dcfg) -> None:
                      "train_episode": agent.meta.get("episode"), "train_reward": agent.meta.get("reward"),
                      **aggregate(episodes, ecfg.walk_duration_s, ecfg.walk_lateral_m)})
     ranked = rank(rows, list(ecfg.rank_by))
-    write_leaderboard(out, ranked, errors, cfg, workers, wall)
+    write_leaderboard(out, ranked, errors, cfg, spec, workers, wall)
 
     best_row = ranked[0]
     best = next(a for a in agents if a.label == best_row["agent"])
@@ -409,9 +415,11 @@ def evaluate(dcfg) -> None:
     if errors:
         console.print(f"[red]{len(errors)} checkpoint(s) skipped[/red] (listed in leaderboard.json)")
     console.print(f"Evaluated in {wall:.1f} s on {workers} worker(s). Wrote {', '.join(written)}", soft_wrap=True)
+    return selection
 
 
-def write_leaderboard(out: Path, ranked: list[dict], errors: list[dict], cfg, workers: int, wall_s: float) -> None:
+def write_leaderboard(out: Path, ranked: list[dict], errors: list[dict], cfg, spec: str, workers: int,
+                      wall_s: float) -> None:
     with (out / "leaderboard.csv").open("w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=LEADERBOARD_FIELDS, extrasaction="ignore")
         writer.writeheader()
@@ -420,7 +428,7 @@ def write_leaderboard(out: Path, ranked: list[dict], errors: list[dict], cfg, wo
     (out / "leaderboard.json").write_text(json.dumps({
         "rank_by": list(ecfg.rank_by), "episodes": ecfg.episodes,
         "seeds": list(range(ecfg.seed, ecfg.seed + ecfg.episodes)), "workers": workers, "wall_time_s": round(wall_s, 3),
-        "ckpt": cfg.ckpt, "eval": asdict(ecfg), "agents": ranked, "errors": errors}, indent=2))
+        "ckpt": spec, "eval": asdict(ecfg), "agents": ranked, "errors": errors}, indent=2))
 
 
 def leaderboard_table(ranked: list[dict], ecfg, limit: int = 20):

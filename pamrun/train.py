@@ -138,7 +138,7 @@ def train(dcfg: DictConfig) -> None:
         (out / "pamrun_config.yaml").write_text(OmegaConf.to_yaml(OmegaConf.structured(cfg)))
     ckpt_dir.mkdir(exist_ok=True)
     seed_everything(cfg.seed)
-    torch.set_num_threads(max(1, (os.cpu_count() or 1) - cfg.train.workers + 1))
+    torch.set_num_threads(cfg.train.threads or max(1, (os.cpu_count() or 1) - cfg.train.workers + 1))
 
     probe = make_env(cfg)
     action_spec = probe.action_spec_unbatched
@@ -300,7 +300,7 @@ class Progress:
         self.unit = unit
         self.bar = None
         self.last_line = 0.0
-        if console.is_terminal:
+        if console.is_terminal and os.environ.get("PAMRUN_PROGRESS") != "lines":  # sweep jobs share a terminal
             from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
             from rich.progress import Progress as RichProgress
 
@@ -331,8 +331,8 @@ def header_table(cfg: Config, out: Path):
         ("algorithm", f"{a.name}: actor lr {a.actor_lr:g}, critic lr {a.critic_lr:g}, batch {a.batch_size}, "
                       f"gamma {a.gamma}, tau {a.target_smoothing:g}, noise var {a.noise_variance:g}"),
         ("robot", f"H {cfg.body.height_m} m, M {cfg.body.mass_kg} kg, coupling {cfg.muscle.coupling}"),
-        ("reward", f"k_vx {cfg.reward.k_vx}, k_y {cfg.reward.k_y}, k_z {cfg.reward.k_z}, k_v {cfg.reward.k_v}, "
-                   f"k_t {cfg.reward.k_t}"),
+        ("reward", f"kvx {cfg.reward.kvx}, ky {cfg.reward.ky}, kz {cfg.reward.kz}, kv {cfg.reward.kv}, "
+                   f"kt {cfg.reward.kt}"),
         ("budget", f"{t.max_frames} frames / {t.max_episodes} episodes"
                    + (f" / {t.max_minutes:g} min" if t.max_minutes else "")
                    + (f", stop at average {t.target_avg_reward:g}" if t.target_avg_reward else "")),
