@@ -133,9 +133,13 @@ def load_agent(path: str | Path, obs_size: int, action_size: int) -> Agent:
     if "counters" in data:  # last.pt
         meta.setdefault("frames", data["counters"].get("frames"))
         meta.setdefault("episode", data["counters"].get("episodes"))
+    from pamrun.config import upgrade_saved_config
+
     config = data.get("config")
     if config is None:
         config = _run_config(path)
+    if config is not None:
+        config = upgrade_saved_config(config)
     return Agent(path=path, label=label_of(path), actor_state=state, hidden_sizes=[h0, h1], meta=meta,
                  config=config, algo=data.get("algo"))
 

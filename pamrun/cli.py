@@ -88,6 +88,12 @@ def run_hydra_app(name: str, args: list[str]) -> None:
         args = [*args, f"hydra.run.dir={resume[-1]}", "hydra.output_subdir=.hydra-resume"]
     if name == "sweep":
         args = sweep_args(args)
+    if name == "sweep optuna" and not any(a.startswith("hydra.run.dir=") for a in args):
+        from pamrun.sweep import sweep_dir_for
+
+        folder = sweep_dir_for(args, kind="optuna")  # the same command resumes the same study
+        print(f"Study directory: {folder}")
+        args = [*args, f"hydra.run.dir={folder}"]
     if name in READ_ONLY:
         folder = [a.split("=", 1)[1] for a in args if a.startswith("dir=")]
         if folder and not any(a.startswith("hydra.run.dir=") for a in args):

@@ -547,6 +547,20 @@ class Config:
         _require(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
 
 
+# Keys renamed since a config could have been saved with a run: old section.key -> new key.
+RENAMED_KEYS = {"reward": {"k_vx": "kvx", "k_y": "ky", "k_z": "kz", "k_v": "kv", "k_t": "kt"}}
+
+
+def upgrade_saved_config(data: dict) -> dict:
+    """A config saved by an older pamrun (a run's pamrun_config.yaml, an agent file) with
+    today's key names, so old runs can still be resumed and evaluated."""
+    data = dict(data)
+    for section, renames in RENAMED_KEYS.items():
+        if isinstance(data.get(section), dict):
+            data[section] = {renames.get(k, k): v for k, v in data[section].items()}
+    return data
+
+
 def register_configs() -> None:
     """Register the root schema; every group's YAML is merged into its typed field."""
     ConfigStore.instance().store(name="pamrun_schema", node=Config)
@@ -554,9 +568,17 @@ def register_configs() -> None:
 
 def parallel_jobs(jobs: int, workers_per_job: int) -> int:
     """Sweep jobs to run side by side: ``jobs``, or (0) the cores each job's workers leave."""
+    return int(jobs) if int(jobs) > 0 else max(1, usable_cores() // max(1, int(workers_per_job)))
+
+
+def usable_cores() -> int:
+    """Cores this process may run on (a SLURM allocation or container limit, not the whole node)."""
     import os
 
-    return int(jobs) if int(jobs) > 0 else max(1, (os.cpu_count() or 1) // max(1, int(workers_per_job)))
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
 
 
 # Used by conf/sweep.yaml (registered on import: sweep jobs compose their config in worker processes).

@@ -300,6 +300,8 @@ def record_video(agent: Agent, kwargs: dict, seed: int, width: int, height: int,
 
 def load_agents(spec: str, cfg) -> tuple[list[Agent], list[dict], list[dict]]:
     """Agents named by ``spec`` with their env kwargs, and one error row per unusable file."""
+    from omegaconf.errors import OmegaConfBaseException
+
     from pamrun.config import ConfigError
     from pamrun.env import N_JOINTS, OBS_SIZE
 
@@ -311,8 +313,8 @@ def load_agents(spec: str, cfg) -> tuple[list[Agent], list[dict], list[dict]]:
         except CheckpointError as err:
             errors.append({"path": err.path, "error": err.message})
             continue
-        except (ConfigError, ValueError) as err:
-            errors.append({"path": str(path), "error": f"its stored config is not valid here: {err}"})
+        except (ConfigError, ValueError, OmegaConfBaseException) as err:
+            errors.append({"path": str(path), "error": f"its stored config is not valid here: {err}".splitlines()[0]})
             continue
         loaded.append(agent)
         kwargs.append(kw)

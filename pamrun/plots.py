@@ -240,3 +240,22 @@ def sweep_curves(groups: list[tuple[str, list[Path]]], png_path: Path, points: i
     fig.savefig(png_path, dpi=110)
     plt.close(fig)
     return Path(png_path)
+
+
+def optuna_history(points: list[tuple[int, float]], direction: str, metric: str, png_path: Path) -> Path:
+    """Objective of every finished Optuna trial and the best so far."""
+    fig, ax = plt.subplots(figsize=(7, 4))
+    if points:
+        n, v = np.array(points, dtype=float).T
+        best = np.maximum.accumulate(v) if direction == "maximize" else np.minimum.accumulate(v)
+        ax.plot(n, v, "o", color="tab:blue", label="trial (mean over seeds)")
+        ax.step(n, best, where="post", color="tab:red", label="best so far")
+        ax.legend(fontsize=8)
+    ax.set_xlabel("trial")
+    ax.set_ylabel(metric)
+    ax.set_title(f"Optuna search ({direction} {metric})")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=110)
+    plt.close(fig)
+    return Path(png_path)

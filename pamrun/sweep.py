@@ -56,11 +56,11 @@ def swept_keys(args: list[str]) -> tuple[list[str], list[str]]:
     return swept, [o.get_key_element() for o in parsed if not o.is_sweep_override()]
 
 
-def sweep_dir_for(args: list[str]) -> str:
-    """``multirun/sweep-<swept keys>-<hash>``: the same command line always gets the same folder."""
+def sweep_dir_for(args: list[str], kind: str = "sweep") -> str:
+    """``multirun/<kind>-<swept keys>-<hash>``: the same command line always gets the same folder."""
     digest = hashlib.sha1("\n".join(sorted(task_overrides(args))).encode()).hexdigest()[:8]
     name = "-".join(swept_keys(args)[0])[:60] or "single"
-    return f"multirun/sweep-{name}-{digest}"
+    return f"multirun/{kind}-{name}-{digest}" if kind == "sweep" else f"multirun/{kind}-{digest}"
 
 
 # --------------------------------------------------------------------------- one job
@@ -116,8 +116,7 @@ def run_job(dcfg: DictConfig, out: Path, hc) -> dict:
     from pamrun.train import train
 
     cfg: Config = to_object(dcfg)  # raises ConfigError for an impossible combination
-    n_jobs = int(OmegaConf.select(hc, "launcher.n_jobs", default=1) or 1)
-    share = max(1, (os.cpu_count() or 1) // n_jobs)  # the cores this job may use
+    share = job_cores(hc)
     dcfg = copy.deepcopy(dcfg)
     if not cfg.train.threads:
         dcfg.train.threads = max(1, share - cfg.train.workers + 1)
@@ -133,6 +132,18 @@ def run_job(dcfg: DictConfig, out: Path, hc) -> dict:
     metrics = job_metrics(out)
     write_hparams(out, hparams_of(list(hc.overrides.task)), metrics)
     return {"metrics": metrics}
+
+
+def job_cores(hc) -> int:
+    """Cores one job may use: its share of this machine (joblib), its Ray reservation, or
+    its allocation (SLURM: the CPU affinity)."""
+    from pamrun.config import usable_cores
+
+    ray_cpus = OmegaConf.select(hc, "launcher.ray.remote.num_cpus", default=None)
+    if ray_cpus:
+        return max(1, int(ray_cpus))
+    n_jobs = int(OmegaConf.select(hc, "launcher.n_jobs", default=1) or 1)
+    return max(1, usable_cores() // n_jobs)
 
 
 def job_metrics(job_dir: Path) -> dict[str, float | None]:

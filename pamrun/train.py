@@ -30,7 +30,7 @@ from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
 from pamrun.checkpoints import agent_record
-from pamrun.config import Config, to_object
+from pamrun.config import Config, to_object, upgrade_saved_config
 
 CSV_FIELDS = ("episode", "frames", "reward", "avg_reward", "q0", "length", "distance_m", "wall_time_s")
 
@@ -451,7 +451,8 @@ def load_run_config(out: Path) -> Config:
     path = out / "pamrun_config.yaml"
     if not (out / "checkpoints" / "last.pt").exists() or not path.exists():
         raise SystemExit(f"pamrun: {out} holds no training run to resume (no checkpoints/last.pt)")
-    return to_object(OmegaConf.merge(OmegaConf.structured(Config), OmegaConf.load(path)))
+    saved = upgrade_saved_config(OmegaConf.to_container(OmegaConf.load(path)))
+    return to_object(OmegaConf.merge(OmegaConf.structured(Config), saved))
 
 
 def git_commit() -> str | None:
