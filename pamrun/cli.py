@@ -109,7 +109,7 @@ def run_hydra_app(name: str, args: list[str]) -> None:
 
 def sweep_args(args: list[str]) -> list[str]:
     """A sweep is always a multirun, in a folder named by its command line (see pamrun.sweep)."""
-    from pamrun.sweep import swept_keys, sweep_dir_for
+    from pamrun.sweep import RUNTIME_KEYS, swept_keys, sweep_dir_for
 
     if not {"-m", "--multirun", "--cfg", "-c", "--info", "-i", "--help", "-h", "--hydra-help"} & set(args):
         args = ["-m", *args]
@@ -118,7 +118,7 @@ def sweep_args(args: list[str]) -> list[str]:
         print(f"Sweep directory: {folder}")
         args = [*args, f"hydra.sweep.dir={folder}"]
     # Job folders are named by the swept overrides only (the rest is the same for all jobs).
-    fixed = swept_keys(args)[1] + ["sweep.jobs", "eval.workers", "train.threads"]
+    fixed = swept_keys(args)[1] + list(RUNTIME_KEYS)
     return [*args, f"hydra.job.config.override_dirname.exclude_keys=[{','.join(fixed)}]"]
 
 

@@ -72,11 +72,12 @@ def optuna_search(dcfg: DictConfig) -> None:
     ocfg, metric = cfg.sweep.optuna, cfg.sweep.metric
     if not ocfg.params:
         raise SystemExit("pamrun: sweep.optuna.params is empty: nothing to search "
-                         "(e.g. sweep=reward_search, or 'sweep.optuna.params={reward.kz: \"float:10:100\"}')")
+                         "(e.g. sweep=reward_search, or '++sweep.optuna.params={reward.kz: float:10:100}')")
     out = run_dir()
     searched = set(ocfg.params)
     base = [o for o in task_overrides(list(HydraConfig.get().overrides.task))
-            if o.lstrip("+~").split("=", 1)[0] not in searched | {"seed"} and not o.startswith("sweep.optuna.")]
+            if o.lstrip("+~").split("=", 1)[0] not in searched | {"seed"}
+            and not o.lstrip("+~").startswith("sweep.optuna.")]
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study = optuna.create_study(study_name="pamrun", storage=f"sqlite:///{out / 'study.db'}", load_if_exists=True,
                                 direction=cfg.sweep.direction,

@@ -52,14 +52,20 @@ def swept_keys(args: list[str]) -> tuple[list[str], list[str]]:
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
     parsed = OverridesParser.create().parse_overrides(task_overrides(args))
-    swept = [o.get_key_element() for o in parsed if o.is_sweep_override()]
-    return swept, [o.get_key_element() for o in parsed if not o.is_sweep_override()]
+    swept = [o.key_or_group for o in parsed if o.is_sweep_override()]
+    return swept, [o.key_or_group for o in parsed if not o.is_sweep_override()]
+
+
+# How a sweep runs, not what it computes: left out of its folder's name, so changing them resumes it.
+RUNTIME_KEYS = ("sweep.jobs", "sweep.optuna.trials", "eval.workers", "train.threads")
 
 
 def sweep_dir_for(args: list[str], kind: str = "sweep") -> str:
-    """``multirun/<kind>-<swept keys>-<hash>``: the same command line always gets the same folder."""
-    digest = hashlib.sha1("\n".join(sorted(task_overrides(args))).encode()).hexdigest()[:8]
-    name = "-".join(swept_keys(args)[0])[:60] or "single"
+    """``multirun/<kind>-<swept keys>-<hash>``: the same command line always gets the same folder
+    (whatever the order of its overrides, the launcher or :data:`RUNTIME_KEYS`)."""
+    identity = sorted(a for a in task_overrides(args) if a.lstrip("+~").split("=", 1)[0] not in RUNTIME_KEYS)
+    digest = hashlib.sha1("\n".join(identity).encode()).hexdigest()[:8]
+    name = "-".join(sorted(swept_keys(args)[0]))[:60] or "single"
     return f"multirun/{kind}-{name}-{digest}" if kind == "sweep" else f"multirun/{kind}-{digest}"
 
 
