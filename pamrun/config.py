@@ -469,7 +469,7 @@ class SweepConfig:
     jobs: int = 0  # trainings at once on this machine; 0 = the cores / each job's train.workers
     # Overrides that repeat a setting rather than define one: the summary groups over them.
     group_exclude: list[str] = field(default_factory=lambda: ["seed"])
-    metric: str = "final_avg_reward"  # what "better" means in the summary's verdict and for Optuna
+    metric: str = "best_distance_m"  # what "better" means in the verdict and for Optuna (comparable across rewards)
     direction: str = "maximize"
     optuna: OptunaConfig = field(default_factory=OptunaConfig)
 

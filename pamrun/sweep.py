@@ -273,7 +273,8 @@ def compare(rows: list[dict], metric: str, direction: str) -> str:
     if not ranked:
         return f"No finished job has a {label}."
     best = ranked[0]
-    text = f"Best {label}: {best['setting']} ({fmt_ci(best[metric], best[f'{metric}_ci95'])}, n={best[f'{metric}_n']})"
+    text = (f"By {label} ({'higher' if direction == 'maximize' else 'lower'} is better), the best setting is "
+            f"{best['setting']} ({fmt_ci(best[metric], best[f'{metric}_ci95'])}, n={best[f'{metric}_n']})")
     if len(ranked) < 2:
         return text + "."
     second = ranked[1]

@@ -41,7 +41,8 @@ def _row(setting, values, m="final_avg_reward"):
 def test_verdict_says_how_sure():
     m = "final_avg_reward"
     clear = compare([_row("a", [10.0, 10.2, 9.9, 10.1]), _row("b", [5.0, 5.2, 4.9, 5.1])], m, "maximize")
-    assert clear.startswith("Best final avg reward: a") and "a real difference at 95 %" in clear
+    assert clear.startswith("By final avg reward (higher is better), the best setting is a (10.05 ± ")
+    assert "runner-up b" in clear and "a real difference at 95 %" in clear
     unsure = compare([_row("a", [10.0, 2.0, 7.0]), _row("b", [9.0, 3.0, 6.0])], m, "maximize")
     assert "not distinguishable at 95 %" in unsure
     assert "too few seeds" in compare([_row("a", [1.0]), _row("b", [0.0])], m, "maximize")
