@@ -35,10 +35,11 @@ from pamrun.checkpoints import ENV_SECTIONS, Agent, CheckpointError, find_checkp
 
 # Aggregates an agent can be ranked by (``eval.rank_by``); larger is better unless prefixed '-'.
 RANK_METRICS = ("walk_pass_rate", "distance_mean", "distance_min", "return_mean", "duration_mean", "speed_mean",
-                "fall_rate", "max_abs_y_max", "pressure_change_mean")
+                "fall_rate", "max_abs_y_mean", "max_abs_y_max", "pressure_change_mean")
 LEADERBOARD_FIELDS = ("rank", "agent", "walk_test", "walk_pass_rate", "distance_mean", "distance_std", "distance_min",
-                      "return_mean", "return_std", "duration_mean", "fall_rate", "max_abs_y_max", "speed_mean",
-                      "pressure_change_mean", "train_episode", "train_reward", "path")
+                      "return_mean", "return_std", "duration_mean", "duration_std", "fall_rate", "max_abs_y_mean",
+                      "max_abs_y_max", "speed_mean", "speed_std", "pressure_change_mean", "pressure_change_std",
+                      "train_episode", "train_reward", "path")
 
 
 # --------------------------------------------------------------------------- one episode
@@ -197,28 +198,25 @@ def walk_passed(episode: dict, walk_duration_s: float, walk_lateral_m: float) ->
             and episode["max_abs_y_m"] <= walk_lateral_m)
 
 
-def aggregate(episodes: list[dict], walk_duration_s: float, walk_lateral_m: float) -> dict[str, Any]:
-    """Mean and spread of an agent's episodes, and its walk test."""
-    def values(key: str) -> np.ndarray:
-        return np.array([e[key] for e in episodes], dtype=float)
+# Per-episode metric -> name of its aggregates (<name>_mean, <name>_std).
+AGGREGATED = {"return": "return", "distance_m": "distance", "duration_s": "duration", "speed_m_s": "speed",
+              "max_abs_y_m": "max_abs_y", "pressure_change_kpa": "pressure_change"}
 
+
+def aggregate(episodes: list[dict], walk_duration_s: float, walk_lateral_m: float) -> dict[str, Any]:
+    """Mean and spread (population std) of an agent's episodes, its extremes and its walk test."""
     passed = [walk_passed(e, walk_duration_s, walk_lateral_m) for e in episodes]
-    distance, ret = values("distance_m"), values("return")
-    return {
-        "episodes": len(episodes),
-        "walk_test": all(passed),
-        "walk_pass_rate": float(np.mean(passed)),
-        "distance_mean": float(distance.mean()),
-        "distance_std": float(distance.std()),
-        "distance_min": float(distance.min()),
-        "return_mean": float(ret.mean()),
-        "return_std": float(ret.std()),
-        "duration_mean": float(values("duration_s").mean()),
-        "fall_rate": float(values("fell").mean()),
-        "max_abs_y_max": float(values("max_abs_y_m").max()),
-        "speed_mean": float(values("speed_m_s").mean()),
-        "pressure_change_mean": float(values("pressure_change_kpa").mean()),
-    }
+    out: dict[str, Any] = {"episodes": len(episodes), "walk_test": all(passed),
+                           "walk_pass_rate": float(np.mean(passed)),
+                           "fall_rate": float(np.mean([e["fell"] for e in episodes]))}
+    for key, name in AGGREGATED.items():
+        values = np.array([e[key] for e in episodes], dtype=float)
+        out[f"{name}_mean"], out[f"{name}_std"] = float(values.mean()), float(values.std())
+        if name == "distance":
+            out["distance_min"] = float(values.min())
+        if name == "max_abs_y":
+            out["max_abs_y_max"] = float(values.max())
+    return out
 
 
 def rank(rows: list[dict], rank_by: list[str]) -> list[dict]:
@@ -385,8 +383,8 @@ def run_evaluation(cfg, spec: str, out: Path) -> dict:
 
     best_row = ranked[0]
     best = next(a for a in agents if a.label == best_row["agent"])
-    save_agent_copy(best, out / "best.pt", source=str(best.path),
-                    evaluation={k: best_row[k] for k in ("walk_test", "walk_pass_rate", "distance_mean", "return_mean")})
+    summary = {k: best_row[k] for k in ("walk_test", "walk_pass_rate", "distance_mean", "return_mean")}
+    save_agent_copy(best, out / "best.pt", source=str(best.path), evaluation=summary)
     selection = {"best": best.label, "source": str(best.path), "file": "best.pt", "rank_by": list(ecfg.rank_by),
                  "reason": selection_reason(ranked, list(ecfg.rank_by)), "walk_test": best_row["walk_test"],
                  "metrics": {k: best_row[k] for k in LEADERBOARD_FIELDS if k not in ("rank", "agent", "path")},

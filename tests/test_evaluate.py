@@ -15,7 +15,7 @@ import torch
 from pamrun.checkpoints import CheckpointError, find_checkpoints, load_agent
 from pamrun.config import ConfigError, to_object
 from pamrun.env import N_JOINTS, OBS_SIZE, PamWalkerEnv
-from pamrun.evaluate import (aggregate, env_kwargs, evaluate_agents, load_agents, make_policy, rank, run_episode,
+from pamrun.evaluate import (aggregate, env_kwargs, evaluate_agents, load_agents, rank, run_episode,
                              walk_passed)
 from tests.conftest import compose_config
 from tests.test_config import run_pamrun
@@ -46,6 +46,8 @@ def test_agent_passes_only_when_every_episode_does():
     assert agg["walk_pass_rate"] == pytest.approx(2 / 3) and agg["walk_test"] is False
     assert agg["distance_mean"] == pytest.approx(16 / 3) and agg["distance_min"] == 2.0
     assert agg["fall_rate"] == pytest.approx(1 / 3)
+    assert agg["distance_std"] == pytest.approx(np.std([8.0, 6.0, 2.0]))
+    assert agg["duration_mean"] == pytest.approx(8.0) and agg["max_abs_y_max"] == 0.1
     assert aggregate([episode(), episode()], 10.0, 0.5)["walk_test"] is True
 
 

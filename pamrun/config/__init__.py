@@ -1,0 +1,168 @@
+"""Typed configuration of pamrun (Hydra structured configs).
+
+Every dataclass here is the schema of one config group under ``conf/``; its defaults are
+the thesis values, each with the section it comes from (``../shared/THESIS.md``). YAML
+files in ``conf/`` select and override them. Hydra rejects unknown keys and wrong types
+while composing; :func:`validate` then checks values (a negative height, tau <= 0, a
+pressure table that is not monotone) and raises :class:`ConfigError` naming the full
+key, before any run directory is created (see :class:`ValidateConfig`).
+
+The schemas live by subject: :mod:`pamrun.config.robot` (muscle, body),
+:mod:`pamrun.config.task` (reward, env), :mod:`pamrun.config.learning` (algo, train) and
+:mod:`pamrun.config.experiments` (eval, sweep, pair); all are importable from here.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+from typing import Any
+
+from hydra.core.config_store import ConfigStore
+from hydra.experimental.callback import Callback
+from omegaconf import DictConfig, OmegaConf, open_dict, read_write
+
+from pamrun.config.checks import CONF_DIR, ConfigError, _require
+from pamrun.config.experiments import (JOB_METRICS, EvalConfig, OptunaConfig, PairConfig, StepExperiment,
+                                       SweepConfig)
+from pamrun.config.learning import AlgoConfig, TrainConfig
+from pamrun.config.robot import SPRING_FILE, BodyConfig, MuscleConfig, RegulatorConfig, SpringConfig
+from pamrun.config.task import EnvConfig, RewardConfig
+
+__all__ = ["CONF_DIR", "SPRING_FILE", "JOB_METRICS", "ConfigError", "Config", "RegulatorConfig", "SpringConfig",
+           "MuscleConfig", "BodyConfig", "RewardConfig", "EnvConfig", "AlgoConfig", "TrainConfig", "EvalConfig",
+           "OptunaConfig", "SweepConfig", "StepExperiment", "PairConfig", "register_configs", "validate",
+           "to_object", "ValidateConfig", "check_command", "upgrade_saved_config", "usable_cores", "parallel_jobs"]
+
+
+# --------------------------------------------------------------------------- root
+
+
+@dataclass
+class Config:
+    """The composed configuration of every pamrun command."""
+
+    seed: int = 0
+    muscle: MuscleConfig = field(default_factory=MuscleConfig)
+    body: BodyConfig = field(default_factory=BodyConfig)
+    reward: RewardConfig = field(default_factory=RewardConfig)
+    env: EnvConfig = field(default_factory=EnvConfig)
+    algo: AlgoConfig = field(default_factory=AlgoConfig)
+    train: TrainConfig = field(default_factory=TrainConfig)
+    resume: str = ""  # a run directory to continue from its last checkpoint
+    dir: str = ""  # a run directory, for commands that read one (pamrun plot training)
+    ckpt: str = ""  # pamrun eval: a checkpoint, a run directory, a folder of runs or a glob
+    eval: EvalConfig = field(default_factory=EvalConfig)
+    sweep: SweepConfig = field(default_factory=SweepConfig)
+    pair: PairConfig = field(default_factory=PairConfig)
+
+    def __post_init__(self) -> None:
+        _require(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
+
+
+# Keys renamed since a config could have been saved with a run: old section.key -> new key.
+RENAMED_KEYS = {"reward": {"k_vx": "kvx", "k_y": "ky", "k_z": "kz", "k_v": "kv", "k_t": "kt"}}
+
+
+def upgrade_saved_config(data: dict) -> dict:
+    """A config saved by an older pamrun (a run's pamrun_config.yaml, an agent file) with
+    today's key names, so old runs can still be resumed and evaluated."""
+    data = dict(data)
+    for section, renames in RENAMED_KEYS.items():
+        if isinstance(data.get(section), dict):
+            data[section] = {renames.get(k, k): v for k, v in data[section].items()}
+    return data
+
+
+def register_configs() -> None:
+    """Register the root schema; every group's YAML is merged into its typed field."""
+    ConfigStore.instance().store(name="pamrun_schema", node=Config)
+
+
+def parallel_jobs(jobs: int, workers_per_job: int) -> int:
+    """Sweep jobs to run side by side: ``jobs``, or (0) the cores each job's workers leave."""
+    return int(jobs) if int(jobs) > 0 else max(1, usable_cores() // max(1, int(workers_per_job)))
+
+
+def usable_cores() -> int:
+    """Cores this process may run on (a SLURM allocation or container limit, not the whole node)."""
+    import os
+
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+# Used by conf/sweep.yaml (registered on import: sweep jobs compose their config in worker processes).
+OmegaConf.register_new_resolver("pamrun_jobs", parallel_jobs, replace=True)
+OmegaConf.register_new_resolver("pamrun_job_dir", lambda name: name or "default", replace=True)
+
+
+def validate(cfg: DictConfig, path: str = "") -> None:
+    """Check every value of a composed config; raise ConfigError with the full key.
+
+    Children are checked before their parent so the error names the deepest key. The
+    ``hydra`` node (present in callbacks) is left out.
+    """
+    if "hydra" in cfg:
+        cfg = copy.deepcopy(cfg)
+        with read_write(cfg), open_dict(cfg):
+            cfg.pop("hydra")
+    for key in cfg.keys():
+        child = cfg._get_node(key)
+        if isinstance(child, DictConfig) and OmegaConf.get_type(child) not in (dict, None):
+            validate(child, f"{path}{key}.")
+        elif isinstance(child, DictConfig):  # a dict of dataclasses, e.g. pair.experiments
+            for name in child.keys():
+                sub = child._get_node(name)
+                if isinstance(sub, DictConfig):
+                    validate(sub, f"{path}{key}.{name}.")
+    if OmegaConf.get_type(cfg) in (dict, None):
+        return
+    try:
+        OmegaConf.to_object(cfg)
+    except ConfigError as err:
+        raise ConfigError(path + err.key, err.message) from None
+
+
+def to_object(cfg: DictConfig) -> Any:
+    """Validated dataclass instance of a composed config (or of one of its sections)."""
+    validate(cfg)
+    return OmegaConf.to_object(cfg)
+
+
+class ValidateConfig(Callback):
+    """Hydra callback: validate values before Hydra creates the run directory."""
+
+    def on_run_start(self, config: DictConfig, **kwargs: Any) -> None:
+        _validate_or_exit(config)
+
+    def on_job_start(self, config: DictConfig, **kwargs: Any) -> None:
+        # Multirun jobs are composed inside the launcher; a bad one fails alone. A sweep job
+        # validates inside its task instead, so the failure is recorded and the others go on.
+        if OmegaConf.select(config, "hydra.job.name", default="") != "sweep":
+            _validate_or_exit(config)
+
+
+def _validate_or_exit(config: DictConfig) -> None:
+    try:
+        validate(config)
+        check_command(config)
+    except ConfigError as err:
+        raise SystemExit(f"pamrun: invalid configuration: {err}") from None
+
+
+def check_command(config: DictConfig) -> None:
+    """What one command needs beyond valid values, checked before its directory exists.
+
+    ``pamrun eval``: ``ckpt`` must name at least one checkpoint file.
+    """
+    job = OmegaConf.select(config, "hydra.job.name", default="")
+    if job == "eval":
+        from pamrun.checkpoints import CheckpointError, find_checkpoints
+
+        try:
+            find_checkpoints(config.ckpt, config.eval.include_last)
+        except CheckpointError as err:
+            raise ConfigError("ckpt", str(err)) from None

@@ -1,0 +1,64 @@
+"""Schemas of the walking task: reward weights (thesis Table 9.3), timing and termination (§9)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from pamrun.config.checks import _non_negative, _positive, _require
+
+# --------------------------------------------------------------------------- task
+
+
+@dataclass
+class RewardConfig:
+    """Per-step reward weights (thesis Table 9.3).
+
+    r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf
+    """
+
+    kvx: float = 1.0
+    ky: float = 4.0
+    kz: float = 60.0
+    kv: float = 0.02
+    kt: float = 25.0
+
+    def __post_init__(self) -> None:
+        for name in ("kvx", "ky", "kz", "kv", "kt"):
+            _require(math.isfinite(getattr(self, name)), name, "must be finite")
+
+
+@dataclass
+class EnvConfig:
+    """Timing, termination and reset of the walking task (thesis §9, §7 of THESIS.md)."""
+
+    control_dt_s: float = 0.025  # Ts of the MathWorks example the thesis adapted
+    episode_s: float = 10.0  # Tf (§9)
+    # MuJoCo timestep: the largest that keeps the joint-limit constraint resolved
+    # (MuJoCo needs its time constant >= 2 steps) with the muscle update a multiple of it.
+    physics_dt_s: float = 0.0025
+    # Muscle model update; its torque is held over muscle_dt_s / physics_dt_s MuJoCo steps.
+    muscle_dt_s: float = 0.005
+    fall_height_ratio: float = 0.6  # fall when torso z < ratio * standing torso z
+    max_lateral_m: float = 0.5  # |y| band (§9.5 trajectories)
+    max_tilt_rad: float = math.pi / 4  # |roll|, |pitch|, |yaw| limit (example's check)
+    reset_noise_rad: float = 0.0  # uniform noise on joint angles at reset
+    reset_velocity_noise: float = 0.0  # uniform noise on joint velocities [rad/s]
+
+    def __post_init__(self) -> None:
+        _positive(self, "control_dt_s", "episode_s", "physics_dt_s", "max_lateral_m", "max_tilt_rad")
+        _non_negative(self, "reset_noise_rad", "reset_velocity_noise")
+        _require(0 < self.fall_height_ratio < 1, "fall_height_ratio", "must lie in (0, 1)")
+        _positive(self, "muscle_dt_s")
+        for key, big, small in (
+            ("muscle_dt_s", self.control_dt_s, self.muscle_dt_s),
+            ("physics_dt_s", self.muscle_dt_s, self.physics_dt_s),
+        ):
+            ratio = big / small
+            _require(
+                abs(ratio - round(ratio)) < 1e-6 and round(ratio) >= 1,
+                key,
+                f"must divide {'control_dt_s' if key == 'muscle_dt_s' else 'muscle_dt_s'} ({big}) a whole number "
+                f"of times, got {small}",
+            )
+        _require(self.episode_s >= self.control_dt_s, "episode_s", "must be >= control_dt_s")
