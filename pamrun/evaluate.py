@@ -169,7 +169,8 @@ def evaluate_agents(agents: list[Agent], kwargs: list[dict], episodes: int, seed
                 for task in tasks:
                     i, k, res = _run_task(task)
                     results[i][k] = res
-                    on_episode and on_episode()
+                    if on_episode:
+                        on_episode()
             finally:
                 for env in _WORKER["envs"].values():
                     env.close()
@@ -183,7 +184,8 @@ def evaluate_agents(agents: list[Agent], kwargs: list[dict], episodes: int, seed
         for future in as_completed([pool.submit(_run_task, t) for t in tasks]):
             i, k, res = future.result()
             results[i][k] = res
-            on_episode and on_episode()
+            if on_episode:
+                on_episode()
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
     return results

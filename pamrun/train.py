@@ -308,10 +308,11 @@ class Progress:
                                     TextColumn("{task.fields[info]}"), TimeElapsedColumn(), TextColumn("ETA"),
                                     TimeRemainingColumn(), console=console)
             self.task = self.bar.add_task(unit, total=total, completed=done, info="")
-            self.bar.start()
 
     def update(self, done: int, info: str) -> None:
         if self.bar is not None:
+            if not self.bar.live.is_started:  # started on first use: worker processes fork before its thread
+                self.bar.start()
             self.bar.update(self.task, completed=done, info=info)
         elif time.monotonic() - self.last_line > 10:
             self.last_line = time.monotonic()
