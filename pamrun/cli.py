@@ -111,11 +111,13 @@ def sweep_args(args: list[str]) -> list[str]:
     """A sweep is always a multirun, in a folder named by its command line (see pamrun.sweep)."""
     from pamrun.sweep import RUNTIME_KEYS, swept_keys, sweep_dir_for
 
-    if not {"-m", "--multirun", "--cfg", "-c", "--info", "-i", "--help", "-h", "--hydra-help"} & set(args):
+    informational = {"--cfg", "-c", "--info", "-i", "--help", "-h", "--hydra-help"} & set(args)
+    if not informational and not {"-m", "--multirun"} & set(args):
         args = ["-m", *args]
     if not any(a.startswith("hydra.sweep.dir=") for a in args):
         folder = sweep_dir_for(args)
-        print(f"Sweep directory: {folder}")
+        if not informational:
+            print(f"Sweep directory: {folder}")
         args = [*args, f"hydra.sweep.dir={folder}"]
     # Job folders are named by the swept overrides only (the rest is the same for all jobs).
     fixed = swept_keys(args)[1] + list(RUNTIME_KEYS)
