@@ -22,7 +22,6 @@ import contextlib
 import csv
 import json
 import multiprocessing
-import os
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict
@@ -337,6 +336,7 @@ def run_evaluation(cfg, spec: str, out: Path) -> dict:
 
     from pamrun import plots
     from pamrun.checkpoints import save_agent_copy
+    from pamrun.config import usable_cores
     from pamrun.train import Progress
 
     console = Console() if Console().is_terminal else Console(width=160)  # logs keep whole rows
@@ -347,7 +347,7 @@ def run_evaluation(cfg, spec: str, out: Path) -> dict:
         console.print(f"[red]skipped[/red] {err['path']}: {err['error']}", soft_wrap=True)
     if not agents:
         raise SystemExit(f"pamrun: no usable checkpoint in {spec} ({len(errors)} unreadable; see above)")
-    workers = min(ecfg.workers or os.cpu_count() or 1, len(agents) * ecfg.episodes)
+    workers = min(ecfg.workers or usable_cores(), len(agents) * ecfg.episodes)
     import pamrun.agents  # noqa: F401  (imported before the clock starts)
 
     console.print(f"Evaluating {len(agents)} agent(s) x {ecfg.episodes} episode(s), seeds {ecfg.seed}.."

@@ -72,8 +72,9 @@ def sweep_dir_for(args: list[str], kind: str = "sweep") -> str:
 # --------------------------------------------------------------------------- one job
 
 
-def read_job(job_dir: Path) -> dict[str, Any]:
-    path = Path(job_dir) / JOB_FILE
+def read_json(path: Path) -> dict[str, Any]:
+    """A JSON file a job left (job.json, run.json, ...), or {} if it is not there yet."""
+    path = Path(path)
     return json.loads(path.read_text()) if path.exists() else {}
 
 
@@ -90,7 +91,7 @@ def job(dcfg: DictConfig) -> dict:
 
     hc = HydraConfig.get()
     out = Path(hc.runtime.output_dir)
-    record = read_job(out)
+    record = read_json(out / JOB_FILE)
     if record.get("status") == "done":
         print(f"[sweep] {out.name}: already done, skipped")
         return record
@@ -126,7 +127,7 @@ def run_job(dcfg: DictConfig, out: Path, hc) -> dict:
     dcfg = copy.deepcopy(dcfg)
     if not cfg.train.threads:
         dcfg.train.threads = max(1, share - cfg.train.workers + 1)
-    run = json.loads((out / "run.json").read_text()) if (out / "run.json").exists() else {}
+    run = read_json(out / "run.json")
     if run.get("status") not in FINISHED_TRAINING:
         if (out / "checkpoints" / "last.pt").exists():
             dcfg.resume = str(out)
@@ -161,9 +162,8 @@ def job_metrics(job_dir: Path) -> dict[str, float | None]:
         OmegaConf.structured(Config)
     threshold = float(cfg.train.save_threshold)
     first_save = next((int(r["frames"]) for r in rows if float(r["reward"]) >= threshold), None)
-    board_path = job_dir / "eval" / "leaderboard.json"
-    agents = json.loads(board_path.read_text())["agents"] if board_path.exists() else []
-    run = json.loads((job_dir / "run.json").read_text()) if (job_dir / "run.json").exists() else {}
+    agents = read_json(job_dir / "eval" / "leaderboard.json").get("agents", [])
+    run = read_json(job_dir / "run.json")
     return {
         "final_avg_reward": float(rows[-1]["avg_reward"]) if rows else None,
         "best_distance_m": max((a["distance_mean"] for a in agents), default=None),

@@ -30,7 +30,7 @@ from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
 from pamrun.checkpoints import agent_record
-from pamrun.config import Config, to_object, upgrade_saved_config
+from pamrun.config import Config, to_object, upgrade_saved_config, usable_cores
 
 CSV_FIELDS = ("episode", "frames", "reward", "avg_reward", "q0", "length", "distance_m", "wall_time_s")
 
@@ -138,7 +138,7 @@ def train(dcfg: DictConfig) -> None:
         (out / "pamrun_config.yaml").write_text(OmegaConf.to_yaml(OmegaConf.structured(cfg)))
     ckpt_dir.mkdir(exist_ok=True)
     seed_everything(cfg.seed)
-    torch.set_num_threads(cfg.train.threads or max(1, (os.cpu_count() or 1) - cfg.train.workers + 1))
+    torch.set_num_threads(cfg.train.threads or max(1, usable_cores() - cfg.train.workers + 1))
 
     probe = make_env(cfg)
     action_spec = probe.action_spec_unbatched
