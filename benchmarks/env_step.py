@@ -1,8 +1,8 @@
 """Environment steps per second vs bare MuJoCo stepping of the same model.
 
-    python benchmarks/env_step.py [--seconds 5] [--coupling thesis|kinematic|both]
+    python benchmarks/env_step.py [--seconds 5] [--presets sized thesis]
 
-Prints control steps/s of PamWalker-v0 with random actions and, in the same run, the
+Prints, per muscle preset, control steps/s of PamWalker-v0 with random actions and, in the same run, the
 rate of bare ``mj_step`` on the same model with the same number of physics substeps
 per control step and no muscle computation; their ratio is the muscle model's cost.
 Results are appended to benchmarks/results/env_step.jsonl.
@@ -19,12 +19,13 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from pamrun.config import preset
 from pamrun.env import PamWalkerEnv
 
 
 def env_rate(env: PamWalkerEnv, seconds: float, seed: int = 0) -> float:
     rng = np.random.default_rng(seed)
-    actions = rng.uniform(-1, 1, (1000, 10)).astype(np.float32)
+    actions = rng.uniform(-1, 1, (1000, env.n_actions)).astype(np.float32)
     env.reset(seed=seed)
     steps, start = 0, time.perf_counter()
     while time.perf_counter() - start < seconds:
@@ -52,16 +53,17 @@ def bare_rate(env: PamWalkerEnv, seconds: float) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=5.0)
-    parser.add_argument("--coupling", default="both", choices=["thesis", "kinematic", "both"])
+    parser.add_argument("--presets", nargs="+", default=["sized", "thesis"])
     args = parser.parse_args()
-    couplings = ["thesis", "kinematic"] if args.coupling == "both" else [args.coupling]
     results = []
-    for coupling in couplings:
-        env = PamWalkerEnv(muscle={"coupling": coupling})
+    for name in args.presets:
+        env = PamWalkerEnv(muscle=preset("muscle", name))
+        coupling = f"{name} ({env.muscle_cfg.coupling})"
         rate_env = env_rate(env, args.seconds)
         rate_bare = bare_rate(env, args.seconds)
         row = {
-            "coupling": coupling,
+            "preset": name,
+            "coupling": env.muscle_cfg.coupling,
             "physics_dt_s": env.model.opt.timestep,
             "substeps": env.n_substeps,
             "env_steps_per_s": round(rate_env, 1),
@@ -70,7 +72,7 @@ def main() -> None:
         }
         results.append(row)
         print(
-            f"{coupling:>9}: env {rate_env:8.1f} control steps/s | bare MuJoCo {rate_bare:8.1f} "
+            f"{coupling:>18}: env {rate_env:8.1f} control steps/s | bare MuJoCo {rate_bare:8.1f} "
             f"({env.n_substeps} x {env.model.opt.timestep * 1000:.1f} ms) | ratio {rate_env / rate_bare:.2f}"
         )
         env.close()

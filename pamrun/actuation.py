@@ -1,30 +1,38 @@
 """Muscle pairs on the robot's joints: action -> pressures -> forces -> joint torques.
 
 Ten antagonistic pairs, one per hinge (``pamrun.body.JOINTS`` order). Muscle 1 of a pair
-pulls the joint towards positive angles, muscle 2 towards negative ones; the policy's
-action a in [-1, 1] sets V1 = V0 + 0.71 a, V2 = V0 - 0.71 a (thesis §9.5).
+pulls the joint towards positive angles, muscle 2 towards negative ones. Each side of a
+pair is ``muscle.count.<joint>`` muscles of ``muscle.size`` in parallel, so its force is
+k F(c, P) with k = count x the size's force ratio (:attr:`MuscleConfig.force_scale`).
+
+Command (``muscle.command``): ``antagonistic`` takes 10 actions a in [-1, 1] and sets
+V1 = V0 + dV a, V2 = V0 - dV a (thesis §9.5: V0 = 2.12 V, dV = 0.71 V); ``independent``
+takes 20 actions, V = V0 + dV a for each muscle (muscle 1 of every pair first), so a
+policy sets each pair's co-contraction as well as its torque.
 
 Two couplings of muscle and joint (``muscle.coupling``):
 
 * ``thesis`` — as the thesis built it (§8.3): each muscle's contraction is its own dynamic
   state (D x' + S x = Fce - FL, :class:`pamrun.muscle.FirstOrderPairDynamics`) and the
-  joint angle does not feed back into it; T = (F1 - F2) r.
+  joint angle does not feed back into it; T = k (F1 - F2) r. A pair gives torque only
+  while its contractions move after a pressure change (~20 ms), then ~0.
 * ``kinematic`` — physically consistent: each muscle's contraction follows the joint
-  through its pulley, c1 = c_rest + 100 r theta / L0 and c2 = c_rest - 100 r theta / L0,
+  through its pulley, c1,2 = c_rest +- 100 r (theta - theta_n) / L0 (theta_n: ``neutral_deg``),
   so co-contraction stiffens the joint; the muscles' dampers (D = tau S) act on the joint
-  velocity, T = (F1 - F2) r - (D1 + D2) r^2 theta'. Pressure follows the command through
-  the regulator (and its lag, if set).
+  velocity, T = k (F1 - F2) r - k (D1 + D2) r^2 theta'. Pressure follows the command
+  through the regulator (and its lag).
 
 Pulley radii and rest contractions are not in the thesis. Both muscles of a pair sit at
-``kinematic_rest_contraction_pct`` in the standing pose (a pre-tensioned pair: zero torque
-at zero action), and each joint's radius is chosen so that its farthest limit takes a
-muscle to ``kinematic_max_contraction_pct`` (the other to 2 c_rest - c_max >= 0):
+``kinematic_rest_contraction_pct`` at the joint's neutral angle (``muscle.neutral_deg``: the
+standing pose, except the knee, whose pair presses it into its extension stop). Each joint's radius is ``muscle.radius_mm.<joint>`` or, at 0, the largest
+that keeps the stretched muscle at or above ``min_contraction_pct`` at the farthest limit:
 
-    r_j = (c_max - c_rest) / 100 * L0 / max(|theta_lo|, |theta_hi|)
+    r_j = (c_rest - c_min) / 100 * L0 / max(|theta_lo - theta_n|, |theta_hi - theta_n|)
 
-That keeps every contraction inside the force polynomial's fitted range. With the
-defaults c_rest = 6.5 %, c_max = 13 % (the contraction near which F(c, 8 bar) * c, the
-torque available at a limit, is largest), the same radii serve the thesis coupling.
+so every contraction stays inside the force polynomial's fitted range (>= -3 %); the
+contracting muscle may go slack near a limit. ``muscle=thesis`` (c_rest = 6.5 %,
+c_min = 0 %) gives the radii the thesis model has always used: 21.5 mm at hip and ankle
+pitch, 43.0 mm hip roll, 10.8 mm knee, 27.7 mm ankle roll.
 """
 
 from __future__ import annotations
@@ -34,41 +42,67 @@ import numpy as np
 from pamrun.config import BodyConfig, MuscleConfig
 from pamrun.muscle import AntagonisticPairs
 
-COUPLINGS = ("thesis", "kinematic")
-
 
 def joint_limits_rad(body: BodyConfig) -> np.ndarray:
-    """(10, 2) joint limits [rad], JOINTS order (right leg mirrors the roll joints, Table 8.3)."""
-    from pamrun.body import LEG_JOINTS
+    """(10, 2) joint limits [rad] in JOINTS order (the mirroring lives in pamrun.body)."""
+    from pamrun.body import SIDES, joint_limits_deg
 
-    left = np.deg2rad([getattr(body, f"{j}_limits_deg") for j in LEG_JOINTS])
-    right = left.copy()
-    for k, name in enumerate(LEG_JOINTS):
-        if name.endswith("roll"):
-            right[k] = -left[k, ::-1]
-    return np.concatenate([right, left])
+    return np.deg2rad([lim for side in SIDES for lim in joint_limits_deg(body, side).values()])
 
 
 def pulley_radii_m(muscle: MuscleConfig, body: BodyConfig) -> np.ndarray:
     """(10,) pulley radius of each joint [m] (see the module docstring for the rule)."""
-    reach_rad = np.abs(joint_limits_rad(body)).max(axis=1)
-    span_pct = muscle.kinematic_max_contraction_pct - muscle.kinematic_rest_contraction_pct
-    return span_pct / 100.0 * muscle.nominal_length_m / reach_rad
+    from pamrun.body import JOINTS, LEG_JOINTS
+
+    names = [LEG_JOINTS[k % len(LEG_JOINTS)] for k in range(len(JOINTS))]
+    reach = [muscle.reach_rad(name, getattr(body, f"{name}_limits_deg")) for name in names]
+    return np.array([muscle.radius_m(name, r) for name, r in zip(names, reach)])
+
+
+def neutral_angles_rad(muscle: MuscleConfig) -> np.ndarray:
+    """(10,) angle of each joint where its pair is balanced at equal pressures, JOINTS order.
+
+    The right leg mirrors the roll joints (as its limits do)."""
+    from pamrun.body import SIDES, LEG_JOINTS
+
+    return np.deg2rad([getattr(muscle.neutral_deg, j) * (-1 if side == "right" and j.endswith("roll") else 1)
+                       for side in SIDES for j in LEG_JOINTS])
+
+
+def force_scales(muscle: MuscleConfig) -> np.ndarray:
+    """(10,) muscles per direction x the size's force ratio, JOINTS order."""
+    from pamrun.body import JOINTS, LEG_JOINTS
+
+    return np.array([getattr(muscle.count, LEG_JOINTS[k % len(LEG_JOINTS)]) for k in range(len(JOINTS))],
+                    float) * muscle.force_scale
+
+
+def n_actions(muscle: MuscleConfig) -> int:
+    """Actions the policy gives: one per pair (antagonistic) or one per muscle (independent)."""
+    from pamrun.body import JOINTS
+
+    return len(JOINTS) * (2 if muscle.command == "independent" else 1)
 
 
 class MuscleDrive:
     """All 20 muscles of the robot, stepped together with numpy."""
 
     def __init__(self, muscle: MuscleConfig, body: BodyConfig):
-        if muscle.coupling not in COUPLINGS:
-            raise ValueError(f"muscle.coupling: unknown {muscle.coupling!r}; known: {COUPLINGS}")
+        from pamrun.config import check_muscle_stretch
+
+        check_muscle_stretch(muscle, body)
         self.cfg = muscle
         self.kinematic = muscle.coupling == "kinematic"
         self.radius_m = pulley_radii_m(muscle, body)
-        self.pairs = AntagonisticPairs(muscle, len(self.radius_m))
-        self.voltage_v = self.pairs.voltages_v(np.zeros(len(self.radius_m)))
+        self.force_scale = force_scales(muscle)
+        self.n_actions = n_actions(muscle)
+        n = len(self.radius_m)
+        self.pairs = AntagonisticPairs(muscle, n, self.force_scale)
+        self.voltage_v = self.voltages_v(np.zeros(self.n_actions))
         self._pct_per_rad = 100.0 * self.radius_m / muscle.nominal_length_m
-        self._contraction = np.zeros((len(self.radius_m), 2))
+        self._neutral = neutral_angles_rad(muscle)
+        self._lever = self.force_scale * self.radius_m  # k r [m]
+        self._contraction = np.zeros((n, 2))
         self._coef: np.ndarray | None = None
 
     def reset(self) -> None:
@@ -76,37 +110,93 @@ class MuscleDrive:
         v0_kpa = self.pairs.regulator.target_pressure_kpa(np.full((1, 2), self.cfg.v0_v))[0, 0]
         rest = self.cfg.kinematic_rest_contraction_pct if self.kinematic else self.cfg.rest_contraction_pct
         self.pairs.reset(v0_kpa, rest)
-        self.voltage_v = self.pairs.voltages_v(np.zeros(len(self.radius_m)))
+        self.voltage_v = self.voltages_v(np.zeros(self.n_actions))
         self._contraction[:] = rest
         self._coef = None
 
+    def voltages_v(self, action: np.ndarray) -> np.ndarray:
+        """Actions in [-1, 1] -> (10, 2) regulator voltages (see ``muscle.command``)."""
+        a = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
+        if self.n_actions == len(self.radius_m):
+            return self.pairs.voltages_v(a)
+        return self.cfg.v0_v + self.cfg.dv_max_v * a.reshape(len(self.radius_m), 2)
+
     def set_action(self, action: np.ndarray) -> None:
         """Hold the regulator voltages for this action until the next call."""
-        self.voltage_v = self.pairs.voltages_v(action)
+        self.voltage_v = self.voltages_v(action)
 
     def set_voltages(self, voltage_v: np.ndarray) -> None:
         """Direct regulator voltages (n, 2), e.g. for open-loop pressure steps."""
         self.voltage_v = np.asarray(voltage_v, dtype=float)
 
+    def apply(self, model, data, qpos_idx: np.ndarray, qvel_idx: np.ndarray, dt_s: float) -> None:
+        """Advance the muscles by dt_s and set MuJoCo's joint actuators for the next dt_s.
+
+        Thesis coupling: the torque, held. Kinematic coupling: the pair's torque linearised
+        at the current angle, T = T0 - K (theta - theta0) - D theta', which MuJoCo evaluates
+        at every physics step through the actuators' affine bias. Holding T0 for a whole
+        muscle step instead is unstable once K / inertia is large (a stiff ankle pair on
+        a light foot), since the muscle spring would act only every muscle step.
+        """
+        angle, velocity = data.qpos[qpos_idx], data.qvel[qvel_idx]
+        if not self.kinematic:
+            data.ctrl[:] = self.torques_nm(angle, velocity, dt_s)
+            return
+        torque, stiffness = self._kinematic_torque(angle, dt_s)
+        data.ctrl[:] = torque + stiffness * angle
+        model.actuator_biasprm[:, 1] = -stiffness
+        model.actuator_biasprm[:, 2] = -self._damping
+
     def torques_nm(self, angle_rad: np.ndarray, velocity_rad_s: np.ndarray, dt_s: float) -> np.ndarray:
         """Advance the muscles by dt_s and return the (10,) joint torques [N m]."""
         pairs = self.pairs
-        changed = pairs.regulator.step(self.voltage_v, dt_s)
         if not self.kinematic:
+            changed = pairs.regulator.step(self.voltage_v, dt_s)
             pairs.dynamics.step(pairs.pressure_kpa, dt_s, changed)
             self._contraction = pairs.dynamics.contraction_pct()
             return pairs.torque_nm(self.radius_m)
+        return self._kinematic_torque(angle_rad, dt_s)[0] - self._damping * velocity_rad_s
+
+    def _kinematic_torque(self, angle_rad: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Step the regulator; the pairs' torque k (F1 - F2) r [N m] at ``angle_rad`` and its
+        stiffness -dT/dtheta [N m/rad] (a slack muscle adds none)."""
+        pairs = self.pairs
+        changed = pairs.regulator.step(self.voltage_v, dt_s)
         if changed or self._coef is None:
             pressure = pairs.pressure_kpa
             self._coef = pairs.law.at_pressure(pressure)
-            # Both muscles' dampers act on the joint: (D1 + D2) r^2 [N m s/rad].
-            self._damping = self.cfg.tau_s * pairs.dynamics.spring(pressure).sum(axis=1) * self.radius_m**2
-        shift = self._pct_per_rad * angle_rad
+            # Both sides' dampers act on the joint: k (D1 + D2) r^2 [N m s/rad], D = tau S.
+            d_n_s_per_m = self.cfg.tau_s * pairs.dynamics.spring(pressure).sum(axis=1) * pairs.dynamics.length_scale
+            self._damping = d_n_s_per_m * self._lever * self.radius_m
+        shift = self._pct_per_rad * (angle_rad - self._neutral)
         c = self._contraction
         c[:, 0] = self.cfg.kinematic_rest_contraction_pct + shift
         c[:, 1] = self.cfg.kinematic_rest_contraction_pct - shift
-        force = np.maximum(pairs.law.force_and_slope(self._coef, c)[0], 0.0)
-        return (force[:, 0] - force[:, 1]) * self.radius_m - self._damping * velocity_rad_s
+        force, slope = pairs.law.force_and_slope(self._coef, c)
+        slope = np.where(force > 0.0, slope, 0.0)  # dF/dc [N/%], 0 where slack
+        force = np.maximum(force, 0.0)
+        torque = (force[:, 0] - force[:, 1]) * self._lever
+        stiffness = -(slope[:, 0] + slope[:, 1]) * self._pct_per_rad * self._lever
+        return torque, stiffness
+
+    def static_torque_nm(self, angle_rad: np.ndarray, pressure_kpa: np.ndarray) -> np.ndarray:
+        """Torque [N m] at rest, no state: angles (..., 10), pressures (..., 10, 2) -> (..., 10).
+
+        Kinematic coupling: the pair's torque at that angle. Thesis coupling: the burst
+        right after the pressures are set, both muscles still at ``rest_contraction_pct``,
+        which does not depend on the angle (and decays to ~0 within ~20 ms).
+        """
+        angle = np.asarray(angle_rad, float)
+        pressure = np.minimum(np.asarray(pressure_kpa, float), self.cfg.max_pressure_kpa)
+        if self.kinematic:
+            shift = self._pct_per_rad * (angle - self._neutral)
+            rest = self.cfg.kinematic_rest_contraction_pct
+            c = np.stack([rest + shift, rest - shift], axis=-1)
+        else:
+            c = np.full(np.broadcast_shapes(angle.shape + (2,), pressure.shape), self.cfg.rest_contraction_pct)
+        c, pressure = np.broadcast_arrays(c, pressure)
+        force = np.maximum(self.pairs.law.signed_force_n(c, pressure), 0.0)
+        return (force[..., 0] - force[..., 1]) * self._lever
 
     @property
     def pressure_kpa(self) -> np.ndarray:

@@ -27,7 +27,7 @@ What the thesis leaves open, and what we chose:
   inertia) differ by a factor ~(1 - d), and no solref gives both. Matching the static value
   left the hip limits ~20x too soft in motion (a swinging leg passed its stop by 13 deg).
   We use MuJoCo's own stiff, critically damped stop, ``solref = (timeconst, dampratio)``
-  = (0.01 s, 1) from ``BodyConfig``, which holds every limit within a degree or two.
+  = (0.005 s, 1) from ``BodyConfig``, which holds every limit within a degree or two.
 * Joint damping 1 N m s/rad, stiffness 0 (Table 8.2); one torque motor per hinge; a
   touch sensor under each sole gives the normal ground force (``FOOT_SENSORS``).
 
@@ -178,7 +178,9 @@ def build_spec(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = F
                    contype=1, conaffinity=1, friction=[cfg.friction_static, 0.005, 0.0001])
 
     z_torso = standing_height_m(cfg) + (FIXED_TORSO_LIFT_M if fixed_torso else 0.0)
-    torso = world.add_body(name=TORSO, pos=[0, 0, z_torso], mass=pelvis["mass_kg"],
+    # ipos must be given: MjSpec's default (NaN) leaves the compiler to place the centre of
+    # mass at the body's pos again, i.e. twice the standing height above the floor.
+    torso = world.add_body(name=TORSO, pos=[0, 0, z_torso], mass=pelvis["mass_kg"], ipos=[0, 0, 0],
                            inertia=_box_inertia(pelvis["mass_kg"], pelvis["x_m"], pelvis["y_m"], pelvis["z_m"]))
     if not fixed_torso:
         torso.add_freejoint(name="root")
@@ -244,8 +246,10 @@ def build_spec(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = F
         spec.add_sensor(name=f"{side}_foot_force", type=mujoco.mjtSensor.mjSENS_TOUCH,
                         objtype=mujoco.mjtObj.mjOBJ_SITE, objname=f"{side}_sole")
     for joint in JOINTS:
+        # Torque = ctrl + biasprm[1] q + biasprm[2] q' (affine bias: the muscle drive sets a
+        # linearised pair there, see pamrun.actuation.MuscleDrive.apply; 0 = a plain motor).
         spec.add_actuator(name=joint, target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT, gear=[1, 0, 0, 0, 0, 0],
-                          ctrllimited=mujoco.mjtLimited.mjLIMITED_FALSE)
+                          ctrllimited=mujoco.mjtLimited.mjLIMITED_FALSE, biastype=mujoco.mjtBias.mjBIAS_AFFINE)
     if not fixed_torso:
         spec.add_key(name="stand", qpos=[0, 0, z_torso, 1, 0, 0, 0] + [0.0] * len(JOINTS))
     return spec

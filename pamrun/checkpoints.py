@@ -44,6 +44,8 @@ class Agent:
     meta: dict[str, Any]  # training episode, frames, reward, ... at the time of saving
     config: dict[str, dict] | None  # ENV_SECTIONS as plain dicts, None if unknown
     algo: dict[str, Any] | None = None
+    obs_size: int = 43  # the actor's input and output sizes
+    action_size: int = 10
 
     @property
     def run_dir(self) -> Path | None:
@@ -96,8 +98,8 @@ def _in_directory(path: Path, include_last: bool) -> list[Path]:
     return [f for run in runs for f in _in_directory(run, include_last)]
 
 
-def load_agent(path: str | Path, obs_size: int, action_size: int) -> Agent:
-    """Read an agent without executing code; check it fits an env with these sizes."""
+def load_agent(path: str | Path, obs_size: int | None = None, action_size: int | None = None) -> Agent:
+    """Read an agent without executing code; check it fits an env with these sizes (if given)."""
     import torch
 
     path = Path(path)
@@ -122,11 +124,7 @@ def load_agent(path: str | Path, obs_size: int, action_size: int) -> Agent:
     if any(k not in shapes or len(shapes[k]) != 2 for k in needed):
         raise CheckpointError(path, f"actor weights do not have the thesis actor's layers {list(needed)}")
     (h0, n_obs), (h1, _), (n_act, _) = (shapes[k] for k in needed)
-    if n_obs != obs_size:
-        raise CheckpointError(path, f"actor takes {n_obs} observations, PamWalker-v0 gives {obs_size}: "
-                                    "trained with an incompatible observation layout")
-    if n_act != action_size:
-        raise CheckpointError(path, f"actor gives {n_act} actions, PamWalker-v0 takes {action_size}")
+    _check_sizes(path, n_obs, n_act, obs_size, action_size)
     if not all(bool(torch.isfinite(v).all()) for v in state.values() if isinstance(v, torch.Tensor)):
         raise CheckpointError(path, "actor weights are not finite (NaN or inf)")
     meta = dict(data.get("meta") or {})
@@ -141,7 +139,20 @@ def load_agent(path: str | Path, obs_size: int, action_size: int) -> Agent:
     if config is not None:
         config = upgrade_saved_config(config)
     return Agent(path=path, label=label_of(path), actor_state=state, hidden_sizes=[h0, h1], meta=meta,
-                 config=config, algo=data.get("algo"))
+                 config=config, algo=data.get("algo"), obs_size=n_obs, action_size=n_act)
+
+
+def _check_sizes(path: Path, n_obs: int, n_act: int, obs_size: int | None, action_size: int | None) -> None:
+    if obs_size is not None and n_obs != obs_size:
+        raise CheckpointError(path, f"actor takes {n_obs} observations, PamWalker-v0 gives {obs_size}: "
+                                    "trained with an incompatible observation layout")
+    if action_size is not None and n_act != action_size:
+        raise CheckpointError(path, f"actor gives {n_act} actions, PamWalker-v0 takes {action_size}")
+
+
+def check_fits(agent: Agent, obs_size: int, action_size: int) -> None:
+    """Raise CheckpointError unless the agent's actor fits an env with these sizes."""
+    _check_sizes(agent.path, agent.obs_size, agent.action_size, obs_size, action_size)
 
 
 def save_agent_copy(agent: Agent, path: Path, **extra_meta) -> Path:

@@ -7,15 +7,21 @@ without Hydra; the Hydra groups ``body``, ``muscle``, ``reward`` and ``env`` map
 keyword arguments of the same names.
 
 ## Action space
-``Box(-1, 1, (10,), float32)``: one value a per joint, in ``pamrun.body.JOINTS`` order
-(right leg then left, each hip pitch, hip roll, knee, ankle pitch, ankle roll). The pair
-of that joint gets V1 = V0 + 0.71 a, V2 = V0 - 0.71 a (§9.5); the action is held for one
-control step Ts = 0.025 s (``env.control_dt_s``). Within it the muscle model steps every
-``env.muscle_dt_s`` (5 ms) and MuJoCo every ``env.physics_dt_s`` (1 ms), the muscle
-torques held between muscle steps (``mj_step`` with ``nstep``, no Python per physics step).
+``muscle.command=antagonistic`` (default, as the thesis): ``Box(-1, 1, (10,), float32)``,
+one value a per joint, in ``pamrun.body.JOINTS`` order (right leg then left, each hip
+pitch, hip roll, knee, ankle pitch, ankle roll). The pair of that joint gets
+V1 = V0 + dV a, V2 = V0 - dV a (§9.5; default V0 = dV = 3 V, i.e. 0.1-6 bar; thesis
+2.12 +- 0.71 V). ``muscle.command=independent``: ``Box(-1, 1, (20,), float32)``, one value
+per muscle, V = V0 + dV a, in the order (joint 0 muscle 1, joint 0 muscle 2, joint 1 ...).
+The action is held for one control step Ts = 0.025 s (``env.control_dt_s``). Within it
+the muscle model steps every ``env.muscle_dt_s`` (5 ms) and MuJoCo every
+``env.physics_dt_s`` (2.5 ms): between muscle steps MuJoCo applies each pair's torque
+linearised at the last muscle step (torque, stiffness and damping through the actuators'
+affine bias, see ``MuscleDrive.apply``), so a stiff pair acts at every physics step with no
+Python per physics step.
 
 ## Observation space
-``Box(-inf, inf, (43,), float32)``:
+``Box(-inf, inf, (33 + n_actions,), float32)``: 43 values (antagonistic) or 53 (independent):
 
 | index | meaning | unit |
 |---|---|---|
@@ -27,7 +33,7 @@ torques held between muscle steps (``mj_step`` with ``nstep``, no Python per phy
 | 11-20 | joint angles, JOINTS order | rad |
 | 21-30 | joint angular velocities, JOINTS order | rad/s |
 | 31, 32 | normal ground force under the right, left foot | robot weights (N / (m g)) |
-| 33-42 | the previous action | 1 |
+| 33-42 (33-52) | the previous action (10 or 20 values) | 1 |
 
 ## Reward (thesis Table 9.3, config group ``reward``)
 r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf, with Vx the
@@ -61,11 +67,18 @@ import mujoco  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
 
 from pamrun import body as body_mod  # noqa: E402
-from pamrun.actuation import MuscleDrive  # noqa: E402
+from pamrun.actuation import MuscleDrive, n_actions  # noqa: E402
 from pamrun.config import BodyConfig, EnvConfig, MuscleConfig, RewardConfig, to_object  # noqa: E402
 
-OBS_SIZE = 43
 N_JOINTS = 10
+OBS_BASE = 33  # observations before the previous action (see the table above)
+OBS_SIZE = OBS_BASE + N_JOINTS  # with the antagonistic command (the default and the thesis)
+
+
+def space_sizes(muscle: MuscleConfig | dict | None = None) -> tuple[int, int]:
+    """(observations, actions) of the env for this muscle config, without building it."""
+    n = n_actions(as_config(muscle, MuscleConfig))
+    return OBS_BASE + n, n
 _INSTABILITY_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQPOS,
     mujoco.mjtWarning.mjWARN_BADQVEL,
@@ -142,9 +155,10 @@ class PamWalkerEnv(gym.Env):
         self._qpos0 = m.key_qpos[key].copy() if key >= 0 else m.qpos0.copy()
         self.z0 = float(self._qpos0[2])
 
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (N_JOINTS,), np.float32)
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (OBS_SIZE,), np.float32)
-        self._prev_action = np.zeros(N_JOINTS)
+        self.n_actions = self.drive.n_actions
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (self.n_actions,), np.float32)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (OBS_BASE + self.n_actions,), np.float32)
+        self._prev_action = np.zeros(self.n_actions)
         self._steps = 0
         self._x0 = 0.0
         self._renderer: mujoco.Renderer | None = None
@@ -155,6 +169,7 @@ class PamWalkerEnv(gym.Env):
         super().reset(seed=seed)
         d, cfg = self.data, self.env_cfg
         mujoco.mj_resetData(self.model, d)
+        self.model.actuator_biasprm[:] = 0.0  # the last episode's linearised muscles (MuscleDrive.apply)
         d.qpos[:] = self._qpos0
         if cfg.reset_noise_rad > 0:
             d.qpos[self._qpos_idx] += self.np_random.uniform(-cfg.reset_noise_rad, cfg.reset_noise_rad, N_JOINTS)
@@ -163,20 +178,20 @@ class PamWalkerEnv(gym.Env):
             d.qvel[self._qvel_idx] = self.np_random.uniform(-noise, noise, N_JOINTS)
         mujoco.mj_forward(self.model, d)
         self.drive.reset()
-        self._prev_action = np.zeros(N_JOINTS)
+        self._prev_action = np.zeros(self.n_actions)
         self._steps = 0
         self._x0 = float(d.qpos[0])
         feet = self.foot_forces_n()
         return self._observation(feet), self._info(False, feet, self._fell())
 
     def step(self, action):
-        action = np.clip(np.asarray(action, dtype=np.float64).reshape(N_JOINTS), -1.0, 1.0)
+        action = np.clip(np.asarray(action, dtype=np.float64).reshape(self.n_actions), -1.0, 1.0)
         m, d = self.model, self.data
         dt, nstep = self.env_cfg.muscle_dt_s, self.n_physics_per_muscle
         self.drive.set_action(action)
         qi, vi = self._qpos_idx, self._qvel_idx
         for _ in range(self.n_muscle_steps):
-            d.ctrl[:] = self.drive.torques_nm(d.qpos[qi], d.qvel[vi], dt)
+            self.drive.apply(m, d, qi, vi, dt)
             mujoco.mj_step(m, d, nstep)
         self._steps += 1
         self._prev_action = action

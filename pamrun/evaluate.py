@@ -30,7 +30,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from pamrun.checkpoints import ENV_SECTIONS, Agent, CheckpointError, find_checkpoints, load_agent, unique_labels
+from pamrun.checkpoints import (ENV_SECTIONS, Agent, CheckpointError, check_fits, find_checkpoints, load_agent,
+                                unique_labels)
 
 # Aggregates an agent can be ranked by (``eval.rank_by``); larger is better unless prefixed '-'.
 RANK_METRICS = ("walk_pass_rate", "distance_mean", "distance_min", "return_mean", "duration_mean", "speed_mean",
@@ -49,9 +50,7 @@ def make_policy(agent: Agent):
     import torch
 
     from pamrun import agents as agents_mod
-    from pamrun.env import N_JOINTS, OBS_SIZE
-
-    net = agents_mod.ThesisActor(OBS_SIZE, N_JOINTS, tuple(agent.hidden_sizes), init_scale=1e-3)
+    net = agents_mod.ThesisActor(agent.obs_size, agent.action_size, tuple(agent.hidden_sizes), init_scale=1e-3)
     net.load_state_dict(agent.actor_state)
     net.eval()
 
@@ -302,13 +301,14 @@ def load_agents(spec: str, cfg) -> tuple[list[Agent], list[dict], list[dict]]:
     from omegaconf.errors import OmegaConfBaseException
 
     from pamrun.config import ConfigError
-    from pamrun.env import N_JOINTS, OBS_SIZE
+    from pamrun.env import space_sizes
 
     loaded, kwargs, errors = [], [], []
     for path in find_checkpoints(spec, cfg.eval.include_last):
         try:
-            agent = load_agent(path, OBS_SIZE, N_JOINTS)
+            agent = load_agent(path)
             kw = env_kwargs(agent, cfg)
+            check_fits(agent, *space_sizes(kw["muscle"]))
         except CheckpointError as err:
             errors.append({"path": err.path, "error": err.message})
             continue

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -20,7 +21,8 @@ from pamrun import plots
 from pamrun.config import SPRING_FILE, Config, to_object
 from pamrun.muscle import FORCE_LAWS, calibrate_spring, simulate_step
 
-console = Console()
+# A log file or pipe gets 120 columns (rich's 80 would cut the wider tables).
+console = Console() if sys.stdout.isatty() else Console(width=120)
 
 
 def run_dir() -> Path:
@@ -80,17 +82,31 @@ def muscle_step(dcfg: DictConfig) -> None:
     """``pamrun muscle step``: both §10.1 experiments -> step_response.json/.png."""
     cfg: Config = to_object(dcfg)
     out = run_dir()
+    capped = _capped_experiment_kpa(cfg)
     results = step_responses(cfg)
     path = out / "step_response.json"
     path.write_text(json.dumps({"spring_n_per_m": list(cfg.muscle.spring.stiffness_n_per_m), "experiments": results}))
     plots.step_response(path, out / "step_response.png")
     print_step_table(results, cfg.pair.tolerance_pct)
+    if capped:
+        console.print(f"[yellow]muscle.max_pressure_kpa = {cfg.muscle.max_pressure_kpa:.0f} kPa caps the experiments' "
+                      f"{capped:.0f} kPa: the §10.1 numbers are the thesis muscle's (muscle=thesis).[/yellow]")
     console.print(f"Wrote {path.name}, step_response.png")
+
+
+def _capped_experiment_kpa(cfg: Config) -> float:
+    """The highest §10.1 experiment pressure this muscle cannot reach (0 if it reaches all)."""
+    top = max(max(e.pressure1_kpa, e.pressure2_kpa) for e in cfg.pair.experiments.values())
+    return top if top > cfg.muscle.max_pressure_kpa else 0.0
 
 
 def muscle_calibrate(dcfg: DictConfig) -> None:
     """``pamrun muscle calibrate``: fit S(P), write it as YAML, show the step responses."""
     cfg: Config = to_object(dcfg)
+    capped = _capped_experiment_kpa(cfg)
+    if capped:
+        raise SystemExit(f"pamrun: muscle calibrate fits S(P) to the §10.1 steps up to {capped:.0f} kPa, but "
+                         f"muscle.max_pressure_kpa is {cfg.muscle.max_pressure_kpa:.0f}: run it with muscle=thesis")
     out = run_dir()
     table, fitted = calibrate_spring(cfg.muscle, cfg.pair)
     spring = replace(cfg.muscle.spring, stiffness_n_per_m=table)
@@ -222,13 +238,13 @@ def openloop_movement(cfg: Config, movement: str, duration_s: float = 3.0, step_
             series["contraction_pct"].append(drive.contraction_pct[j].round(3).tolist())
             series["angle_deg"].append(round(float(np.degrees(data.qpos[qi[j]])), 3))
         drive.set_voltages(stepped if t >= step_time_s else rest)
-        data.ctrl[:] = drive.torques_nm(data.qpos[qi], data.qvel[vi], dt)
+        drive.apply(model, data, qi, vi, dt)
         mujoco.mj_step(model, data, nstep)
     # The thesis' limit damping (10 N m s/rad) lets a joint bounce on its stop: average.
     angles = np.asarray(series["angle_deg"])
     final = float(angles[np.asarray(series["time_s"]) >= duration_s - 0.5].mean())
     limit = float(np.degrees(limits[side]))
-    muscle_now = float(data.ctrl[j])  # muscle torque at the end [N m]
+    muscle_now = float(data.actuator_force[j])  # muscle torque at the end [N m]
     # Why a joint stalls: the gravity torque to hold at the limit vs the muscle torque there.
     data.qpos[:] = 0
     data.qpos[qi[j]] = limits[side]
@@ -310,3 +326,53 @@ def body(dcfg: DictConfig) -> None:
                         for v in (row[k] for k in headers)))
     console.print(table)
     console.print(f"Robot mass {total_kg:.2f} kg. Wrote robot.xml, body.json, robot.png")
+
+
+def capacity(dcfg: DictConfig) -> None:
+    """``pamrun capacity``: muscle envelope and stiffness against standing and walking demand."""
+    from pamrun.capacity import analyse
+
+    cfg: Config = to_object(dcfg)
+    out = run_dir()
+    result = analyse(cfg.muscle, cfg.body)
+    path = out / "capacity.json"
+    path.write_text(json.dumps(result))
+    plots.capacity(path, out / "capacity.png")
+    m = cfg.muscle
+    burst = m.coupling == "thesis"
+    table = Table(title=f"Capacity vs demand: {m.size}, L0 {m.nominal_length_m * 1000:.0f} mm, {m.coupling} coupling, "
+                        f"band {result['band_kpa'][1]:.0f}/{result['band_kpa'][0]:.0f} kPa, "
+                        f"robot {result['robot_mass_kg']:.1f} kg")
+    cols = ("joint", "n", "r mm", "walk Nm", "band Nm", "margin", "full", "lean Nm", "K0", "mgh", "K0/mgh")
+    for col in cols:
+        table.add_column(col, justify="left" if col == "joint" else "right", no_wrap=True)
+    need = result["required_margin"]
+    for name, r in result["joints"].items():
+        ok = r["walking_margin"] >= need
+        k_ok = r["stiffness_margin"] >= 1.0
+        table.add_row(name, str(r["muscles_per_direction"]), f"{r['radius_mm']:.1f}", f"{r['walking_demand_nm']:.1f}",
+                      f"{r['envelope']['band']['walking_min_nm']:.1f}",
+                      f"[{'green' if ok else 'red'}]{r['walking_margin']:.2f}[/]", f"{r['walking_margin_full']:.2f}",
+                      f"{r['lean_demand_nm']:.1f}", f"{abs(r['stiffness_zero_action_nm_per_rad']):.0f}",
+                      f"{r['gravity_stiffness_nm_per_rad']:.0f}",
+                      f"[{'green' if k_ok else 'red'}]{abs(r['stiffness_margin']):.2f}[/]")
+    console.print(table)
+    v = result["verdict"]
+    console.print(
+        "n: muscles per direction; walk: peak walking moment; band: the weakest envelope point over the walking "
+        "range in the command band; margin = band / walk (full: at full pressure); lean: holding a "
+        f"{result['lean_deg']:.0f} deg lean; K0: stiffness at zero action; mgh: gravitational stiffness per leg "
+        "(N m/rad)."
+    )
+    if burst:
+        console.print("Thesis coupling: the envelope is the burst torque right after a pressure change (both "
+                      "muscles still at their rest contraction); it decays to ~0 within ~20 ms, and the pair has no "
+                      "stiffness: the robot cannot hold a pose by pressure alone.")
+    console.print(
+        f"Walking demand (peak human joint moments per kg x {result['robot_mass_kg']:.1f} kg, anywhere in the walking "
+        f"range, either direction) covered with margin >= {need}: "
+        + ("[green]yes[/green]" if v["walking_margin_ok"] else f"[red]no[/red] (weakest {v['min_walking_margin']:.2f})")
+        + f". Ankle stiffness at zero action ({result['zero_action_kpa']:.0f} kPa both) >= m g h per ankle: "
+        + ("[green]yes[/green]" if v["ankle_stiffness_ok"] else "[red]no[/red]")
+        + f". Centre of mass {result['com_height_m']:.3f} m up. Wrote capacity.json, capacity.png"
+    )

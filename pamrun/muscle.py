@@ -25,6 +25,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pamrun.config.robot import SPRING_REFERENCE_LENGTH_M
+
 if TYPE_CHECKING:
     from pamrun.config import MuscleConfig, PairConfig, RegulatorConfig, SpringConfig, StepExperiment
 
@@ -201,6 +203,10 @@ class FirstOrderPairDynamics:
         self.tau_s = cfg.tau_s
         self.rest_pct = cfg.rest_contraction_pct
         self.pct_per_m = 100.0 / cfg.nominal_length_m
+        # S is tabulated for the 260 mm muscle the thesis calibrated; a muscle of another
+        # length is that spring in series, S * L_ref / L0, so its response in % is the same.
+        # (A size's force scale multiplies F and S alike and cancels here.)
+        self.length_scale = SPRING_REFERENCE_LENGTH_M / cfg.nominal_length_m
         self.x_m = np.zeros((n_pairs, 2))
         self.force_n = np.zeros((n_pairs, 2))
         self._pressure: np.ndarray | None = None
@@ -216,7 +222,7 @@ class FirstOrderPairDynamics:
         """Cache what depends on pressure only: force coefficients, S and D = tau S."""
         self._pressure = pressure_kpa
         self._coef = self.law.at_pressure(pressure_kpa)
-        self.s = self.spring(pressure_kpa)
+        self.s = self.spring(pressure_kpa) * self.length_scale
         self.d = self.tau_s * self.s
 
     def step(self, pressure_kpa: np.ndarray, dt_s: float, pressure_changed: bool = True) -> np.ndarray:
@@ -251,12 +257,14 @@ class AntagonisticPairs:
     """n antagonistic muscle pairs: command -> regulator -> dynamics -> force -> torque.
 
     Command of thesis §9.5: V1 = V0 + dV, V2 = V0 - dV with dV = dv_max * a, a in [-1, 1].
-    Joint torque T = (F1 - F2) * r [N m] with forces never negative.
+    Joint torque T = k (F1 - F2) r [N m] with forces never negative, where ``force_scale``
+    k = muscles in parallel x the size's force ratio (1 for one DMSP-20, the thesis).
     """
 
-    def __init__(self, cfg: MuscleConfig, n_pairs: int):
+    def __init__(self, cfg: MuscleConfig, n_pairs: int, force_scale: float | np.ndarray = 1.0):
         self.cfg = cfg
         self.n_pairs = n_pairs
+        self.force_scale = np.broadcast_to(np.asarray(force_scale, float), (n_pairs,)).copy()
         self.law = FORCE_LAWS[cfg.force_law](cfg.max_pressure_kpa)
         self.regulator = Regulator(cfg.regulator, np.full((n_pairs, 2), cfg.v0_v * cfg.regulator.gain_kpa_per_v))
         self.dynamics = DYNAMICS[cfg.dynamics](cfg, self.law, n_pairs)
@@ -286,7 +294,7 @@ class AntagonisticPairs:
         self.dynamics.step(self.pressure_kpa, dt_s, changed)
 
     def forces_n(self) -> np.ndarray:
-        """Force each muscle applies [N], (n, 2), never negative."""
+        """Force of one muscle of each side [N], (n, 2), never negative (before ``force_scale``)."""
         dyn = self.dynamics
         if dyn._pressure is None:
             dyn.at_pressure(self.pressure_kpa)
@@ -295,7 +303,7 @@ class AntagonisticPairs:
     def torque_nm(self, radius_m: np.ndarray) -> np.ndarray:
         """Joint torque [N m] after the last step: (F1 - F2) r, forces never negative."""
         force = np.maximum(self.dynamics.force_n, 0.0)
-        return (force[:, 0] - force[:, 1]) * radius_m
+        return (force[:, 0] - force[:, 1]) * (self.force_scale * radius_m)
 
 
 # --------------------------------------------------------------------------- experiments
@@ -337,7 +345,7 @@ def calibrate_spring(muscle: MuscleConfig, pair: PairConfig) -> tuple[list[float
 
     law = FORCE_LAWS[muscle.force_law](muscle.max_pressure_kpa)
     spring = SpringTable(muscle.spring)
-    pct_per_m = 100.0 / muscle.nominal_length_m
+    pct_per_m = 100.0 / SPRING_REFERENCE_LENGTH_M  # the table is for the reference length
     rest = muscle.rest_contraction_pct
 
     guesses: dict[int, list[float]] = {}

@@ -259,3 +259,39 @@ def optuna_history(points: list[tuple[int, float]], direction: str, metric: str,
     fig.savefig(png_path, dpi=110)
     plt.close(fig)
     return Path(png_path)
+
+
+def capacity(json_path: Path, png_path: Path) -> Path:
+    """Torque envelope of each joint against its walking and standing demand (pamrun capacity)."""
+    data = json.loads(Path(json_path).read_text())
+    joints = data["joints"]
+    fig, axes = plt.subplots(1, len(joints), figsize=(3.6 * len(joints), 3.8), squeeze=False)
+    need = data["required_margin"]
+    for ax, (name, r) in zip(axes[0], joints.items()):
+        angle = np.asarray(r["angle_deg"])
+        for label, style in (("band", "-"), ("full", "--")):
+            env = r["envelope"][label]
+            ax.plot(angle, env["plus_nm"], "tab:blue", ls=style, lw=1.4, label=f"{label} +" if label == "band" else None)
+            ax.plot(angle, env["minus_nm"], "tab:red", ls=style, lw=1.4, label=f"{label} -" if label == "band" else None)
+        lo, hi = r["walking_range_deg"]
+        ax.axvspan(lo, hi, color="0.9", zorder=0, label="walking range")
+        d = r["walking_demand_nm"]
+        for sign in (1, -1):
+            ax.hlines(sign * d, lo, hi, colors="k", lw=1.2, label="walking peak" if sign > 0 else None)
+            ax.hlines(sign * need * d, lo, hi, colors="k", lw=1, linestyles=":",
+                      label=f"x{need}" if sign > 0 else None)
+            ax.hlines(sign * r["lean_demand_nm"], angle[0], angle[-1], colors="tab:green", lw=1,
+                      label=f"{data['lean_deg']:.0f} deg lean" if sign > 0 else None)
+        ax.axhline(0, color="0.5", lw=0.5)
+        ax.set_title(f"{name}: margin {r['walking_margin']:.2f}\n{r['muscles_per_direction']} x {data['muscle']['size']}, "
+                     f"r {r['radius_mm']:.0f} mm", fontsize=9)
+        ax.set_xlabel("joint angle [deg]")
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("torque [N m] (dashed: full pressure)")
+    axes[0][0].legend(fontsize=7, loc="lower left")
+    fig.suptitle(f"Capacity vs demand ({data['coupling']} coupling, band {data['band_kpa'][1]:.0f}-"
+                 f"{data['band_kpa'][0]:.0f} kPa, robot {data['robot_mass_kg']:.1f} kg)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=110)
+    plt.close(fig)
+    return Path(png_path)

@@ -121,7 +121,7 @@ def train(dcfg: DictConfig) -> None:
     from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
     from pamrun import agents
-    from pamrun.env import N_JOINTS, OBS_SIZE
+    from pamrun.env import space_sizes
     from pamrun.lab import run_dir
 
     console = Console()
@@ -143,8 +143,9 @@ def train(dcfg: DictConfig) -> None:
     probe = make_env(cfg)
     action_spec = probe.action_spec_unbatched
     probe.close()
-    actor = agents.make_actor(cfg.algo, OBS_SIZE, N_JOINTS)
-    critic = agents.make_critic(cfg.algo, OBS_SIZE, N_JOINTS)
+    obs_size, act_size = space_sizes(cfg.muscle)
+    actor = agents.make_actor(cfg.algo, obs_size, act_size)
+    critic = agents.make_critic(cfg.algo, obs_size, act_size)
     explore = agents.make_exploration(cfg.algo, actor, action_spec)
     loss, updater, _ = agents.make_loss(cfg.algo, actor, critic, action_spec)
     critic_loss_fn, actor_loss_fn = agents.loss_parts(loss)

@@ -23,3 +23,8 @@ def compose_config(*overrides: str):
 def cfg() -> Config:
     """The default configuration as validated dataclasses."""
     return to_object(compose_config())
+
+
+def thesis_muscle():
+    """The thesis' muscle model (``muscle=thesis``) as a validated MuscleConfig."""
+    return to_object(compose_config("muscle=thesis")).muscle

@@ -122,3 +122,37 @@ def test_bad_body_values_fail_with_the_key():
         BodyConfig(knee_limits_deg=[10.0, 5.0])
     with pytest.raises(ConfigError, match="contact_overlap_m"):
         BodyConfig(contact_overlap_m=0.0)
+
+
+def _standing_data(cfg: BodyConfig):
+    model = body.build_model(cfg)
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "stand"))
+    mujoco.mj_forward(model, data)
+    return model, data
+
+
+@pytest.mark.parametrize("height_m, mass_kg", [(1.80, 80.0), (1.60, 60.0)])
+def test_every_body_centre_of_mass_at_the_standing_pose(height_m, mass_kg):
+    """World-frame centres of mass of the compiled model against the anthropometric ratios:
+    the pelvis block's at its centre (half its height above the hips), the thigh's and the
+    shank's 0.433 of their length below the proximal joint (Winter, Table 4.1, as Table
+    8.2's CoM column), the foot's at half its height, 0.0569 H/1.8 in front of the ankle."""
+    cfg = BodyConfig(height_m=height_m, mass_kg=mass_kg)
+    seg = body.anthropometry(cfg)
+    model, data = _standing_data(cfg)
+    foot_z, shank, thigh, pelvis = seg["foot"]["z_m"], seg["lower_leg"]["z_m"], seg["upper_leg"]["z_m"], seg["pelvis"]
+    hip_z = foot_z + shank + thigh
+    expected_z = {"torso": hip_z + pelvis["z_m"] / 2, "thigh": hip_z - 0.433 * thigh,
+                  "shin": foot_z + shank - 0.433 * shank, "foot": foot_z / 2}
+    for name in ("torso", "right_thigh", "left_shin", "right_foot"):
+        com = data.xipos[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)]
+        assert com[2] == pytest.approx(expected_z[name.split("_")[-1]], abs=2e-3), name
+    foot = data.xipos[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "left_foot")]
+    assert foot[0] == pytest.approx(0.0569 * height_m / 1.8, abs=1e-3)
+    # The whole robot's centre of mass: ~0.40 H up (0.715 m at 1.80 m), over the feet.
+    total = (sum(seg[k]["mass_kg"] * expected_z[n] for k, n in
+                 (("upper_leg", "thigh"), ("lower_leg", "shin"), ("foot", "foot"))) * 2
+             + pelvis["mass_kg"] * expected_z["torso"]) / model.body_subtreemass[0]
+    assert data.subtree_com[0][2] == pytest.approx(total, abs=2e-3)
+    assert 0.38 * height_m < data.subtree_com[0][2] < 0.42 * height_m

@@ -12,11 +12,17 @@ from pamrun.config import BodyConfig, ConfigError, MuscleConfig, to_object
 from tests.conftest import compose_config
 
 
-def test_default_config_is_the_thesis(cfg):
-    assert cfg.muscle.tau_s == 0.3
-    assert cfg.muscle.v0_v == 2.12 and cfg.muscle.dv_max_v == 0.71
+def test_default_config_is_the_sized_robot_and_muscle_thesis_is_the_thesis(cfg):
+    assert cfg.muscle == MuscleConfig()  # the dataclass is the one source of defaults (muscle=sized)
+    assert (cfg.muscle.size, cfg.muscle.coupling, cfg.muscle.command) == ("DMSP-40", "kinematic", "antagonistic")
     assert cfg.body.height_m == 1.80 and cfg.body.mass_kg == 80.0
-    assert len(cfg.muscle.spring.stiffness_n_per_m) == 8
+    thesis = to_object(compose_config("muscle=thesis")).muscle
+    assert thesis.tau_s == 0.3 and thesis.v0_v == 2.12 and thesis.dv_max_v == 0.71
+    assert (thesis.size, thesis.nominal_length_m, thesis.coupling, thesis.max_pressure_kpa) == ("DMSP-20", 0.26,
+                                                                                             "thesis", 800.0)
+    assert thesis.regulator.lag_s == 0 and thesis.force_scale == 1.0
+    assert all(v == 1 for v in vars(thesis.count).values())
+    assert len(thesis.spring.stiffness_n_per_m) == 8
 
 
 @pytest.mark.parametrize(
@@ -31,6 +37,12 @@ def test_default_config_is_the_thesis(cfg):
         ("muscle.force_law=geometric", "muscle.force_law"),
         ("body.height_m=-1.8", "body.height_m"),
         ("body.knee_limits_deg=[90,0]", "body.knee_limits_deg"),
+        ("muscle.size=DMSP-30", "muscle.size"),
+        ("muscle.count.knee=0", "muscle.count.knee"),
+        ("muscle.command=both", "muscle.command"),
+        ("muscle.min_contraction_pct=-4", "muscle.min_contraction_pct"),
+        ("muscle.radius_mm.ankle_pitch=80", "muscle.radius_mm.ankle_pitch"),
+        ("muscle.neutral_deg.knee=120", "muscle.neutral_deg.knee"),
         ("pair.experiments.max_and_1bar.pressure1_kpa=-1", "pair.experiments.max_and_1bar.pressure1_kpa"),
     ],
 )
@@ -89,5 +101,5 @@ def test_cli_prints_config_and_help():
     assert "tau_s: 0.2" in proc.stdout
     proc = run_pamrun("muscle", "step", "--help")
     assert proc.returncode == 0
-    assert "muscle: dmsp20" in proc.stdout and "body: thesis" in proc.stdout
+    assert "muscle: sized" in proc.stdout and "body: thesis" in proc.stdout
     assert "schema" not in proc.stdout.split("== Config ==")[0]

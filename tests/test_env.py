@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import math
+from dataclasses import asdict
 
 import gymnasium as gym
 import mujoco
@@ -15,6 +16,7 @@ import pamrun  # noqa: F401  (registers the env)
 from pamrun.body import JOINTS
 from pamrun.config import ConfigError
 from pamrun.env import PamWalkerEnv, quat_to_euler
+from tests.conftest import thesis_muscle
 
 
 @pytest.fixture(scope="module")
@@ -161,7 +163,7 @@ def test_seeding_is_reproducible():
 
 @pytest.mark.parametrize("coupling", ["thesis", "kinematic"])
 def test_info_has_muscle_state(coupling):
-    e = PamWalkerEnv(muscle={"coupling": coupling})
+    e = PamWalkerEnv(muscle={**asdict(thesis_muscle()), "coupling": coupling})
     e.reset(seed=0)
     _, _, _, _, info = e.step(np.ones(10, dtype=np.float32))
     assert info["pressure_kpa"].shape == (10, 2) and info["contraction_pct"].shape == (10, 2)

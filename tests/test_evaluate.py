@@ -96,9 +96,9 @@ def test_episode_metrics_agree_with_its_steps(tmp_path):
     assert ep["duration_s"] == pytest.approx(n * 0.025)
     assert ep["fell"] == (n < 80)
     assert ep["max_abs_y_m"] == max(abs(y) for y in steps["y_m"])
-    # Commanded pressure is 100 kPa/V * (V0 +- 0.71 a): each joint's two muscles change by 71 |da| kPa.
+    # Commanded pressure is 100 kPa/V * (V0 +- dV a): each joint's two muscles change by 100 dV |da| kPa.
     actions = np.vstack([np.zeros(N_JOINTS), np.asarray(steps["action"])])
-    expected = 71.0 * np.abs(np.diff(actions, axis=0)).mean()
+    expected = 100.0 * env.muscle_cfg.dv_max_v * np.abs(np.diff(actions, axis=0)).mean()
     assert ep["pressure_change_kpa"] == pytest.approx(expected, rel=1e-6)
     assert ep["speed_m_s"] == pytest.approx(ep["distance_m"] / ep["duration_s"])
     assert len(steps["pressure_kpa"][0]) == 20 and len(steps["joint_angle_rad"][0]) == 10

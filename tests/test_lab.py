@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import json
 
+from pamrun.config import CONF_DIR
 from tests.test_config import run_pamrun
 
 
 def test_muscle_step_writes_json_and_png(tmp_path):
     run_dir = tmp_path / "step"
-    proc = run_pamrun("muscle", "step", f"hydra.run.dir={run_dir}")
+    proc = run_pamrun("muscle", "step", "muscle=thesis", f"hydra.run.dir={run_dir}")
     assert proc.returncode == 0, proc.stderr
     assert f"Run directory: {run_dir}" in proc.stdout.replace("\n", "")
     data = json.loads((run_dir / "step_response.json").read_text())
@@ -25,7 +26,7 @@ def test_muscle_step_writes_json_and_png(tmp_path):
 def test_muscle_step_reports_a_miss(tmp_path):
     """A spring table far from the calibrated one must show up as a miss, not pass silently."""
     proc = run_pamrun(
-        "muscle", "step", "muscle.spring.stiffness_n_per_m=[5000,5000,5000,5000,5000,5000,5000,5000]",
+        "muscle", "step", "muscle=thesis", "muscle.spring.stiffness_n_per_m=[5000,5000,5000,5000,5000,5000,5000,5000]",
         f"hydra.run.dir={tmp_path / 'miss'}",
     )
     assert proc.returncode == 0, proc.stderr
@@ -45,12 +46,24 @@ def test_muscle_curves_writes_figures(tmp_path):
 def test_muscle_calibrate_writes_yaml_without_touching_conf(tmp_path):
     run_dir = tmp_path / "cal"
     proc = run_pamrun(
-        "muscle", "calibrate", "pair.calibrate_write_conf=false", "pair.duration_s=1.5", "pair.dt_s=0.002",
-        f"hydra.run.dir={run_dir}",
+        "muscle", "calibrate", "muscle=thesis", "pair.calibrate_write_conf=false", "pair.duration_s=1.5",
+        "pair.dt_s=0.002", f"hydra.run.dir={run_dir}",
     )
     assert proc.returncode == 0, proc.stderr
     text = (run_dir / "spring_table.yaml").read_text()
     assert "stiffness_n_per_m" in text and "Fitted bands" in text
+
+
+def test_step_on_a_6_bar_muscle_says_so_and_calibration_refuses_it(tmp_path):
+    """The default muscle is rated 6 bar: §10.1 steps to 8 bar, so its numbers are the thesis muscle's."""
+    proc = run_pamrun("muscle", "step", f"hydra.run.dir={tmp_path / 'step'}")
+    assert proc.returncode == 0, proc.stderr
+    assert "caps the experiments" in " ".join(proc.stdout.split()) and "muscle=thesis" in proc.stdout
+    conf = CONF_DIR / "muscle" / "spring" / "calibrated.yaml"
+    before = conf.read_text()
+    proc = run_pamrun("muscle", "calibrate", f"hydra.run.dir={tmp_path / 'cal'}")
+    assert proc.returncode != 0 and "muscle=thesis" in proc.stderr
+    assert conf.read_text() == before
 
 
 def test_pamrun_body_writes_model_table_and_picture(tmp_path):
@@ -64,9 +77,9 @@ def test_pamrun_body_writes_model_table_and_picture(tmp_path):
 
 
 def test_openloop_kinematic_reaches_the_limits_it_can(tmp_path):
-    """Kinematic coupling: every joint whose muscles out-pull gravity reaches its limit."""
+    """The thesis' muscles in kinematic coupling: every joint whose muscles out-pull gravity reaches its limit."""
     run_dir = tmp_path / "ol"
-    proc = run_pamrun("openloop", "muscle.coupling=kinematic", f"hydra.run.dir={run_dir}")
+    proc = run_pamrun("openloop", "muscle=thesis", "muscle.coupling=kinematic", f"hydra.run.dir={run_dir}")
     assert proc.returncode == 0, proc.stderr
     moves = json.loads((run_dir / "openloop.json").read_text())["movements"]
     assert len(moves) == 9 and len(list(run_dir.glob("openloop_*.png"))) == 9
@@ -81,7 +94,7 @@ def test_openloop_kinematic_reaches_the_limits_it_can(tmp_path):
 def test_openloop_thesis_coupling_has_no_steady_torque(tmp_path):
     """Thesis coupling: once settled, both muscles sit at their zero-force contraction."""
     run_dir = tmp_path / "olt"
-    proc = run_pamrun("openloop", f"hydra.run.dir={run_dir}")
+    proc = run_pamrun("openloop", "muscle=thesis", f"hydra.run.dir={run_dir}")
     assert proc.returncode == 0, proc.stderr
     moves = json.loads((run_dir / "openloop.json").read_text())["movements"]
     assert all(abs(r["muscle_torque_at_limit_nm"]) < 1.0 for r in moves.values())

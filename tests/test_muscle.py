@@ -17,6 +17,7 @@ from pamrun.muscle import (
     simulate_step,
     zero_force_contraction_pct,
 )
+from tests.conftest import thesis_muscle
 
 
 def test_polynomial_spot_values():
@@ -67,7 +68,7 @@ def test_regulator_lag_is_first_order():
 
 
 def test_spring_table_bands():
-    spring = SpringTable(MuscleConfig().spring)
+    spring = SpringTable(thesis_muscle().spring)
     assert spring.band(np.array([0.0, 99.9, 100.0, 276.4, 800.0, 950.0])).tolist() == [0, 0, 1, 2, 7, 7]
 
 
@@ -75,7 +76,7 @@ def test_spring_table_bands():
 def test_step_responses_match_thesis(name):
     pair = PairConfig()
     exp = pair.experiments[name]
-    final = simulate_step(MuscleConfig(), pair, exp)["contraction_pct"][-1]
+    final = simulate_step(thesis_muscle(), pair, exp)["contraction_pct"][-1]
     np.testing.assert_allclose(final, exp.thesis_final_pct, atol=0.5)
 
 
@@ -84,8 +85,8 @@ def test_integration_stable_at_robot_step_sizes(dt_s):
     """At 5 ms (and 10 ms) the trajectory stays finite, monotone and close to a 0.1 ms reference."""
     pair = PairConfig(duration_s=1.5, step_time_s=0.5)
     exp = pair.experiments["max_and_1bar"]
-    fine = simulate_step(MuscleConfig(), replace(pair, dt_s=0.0001), exp)
-    coarse = simulate_step(MuscleConfig(), replace(pair, dt_s=dt_s), exp)
+    fine = simulate_step(thesis_muscle(), replace(pair, dt_s=0.0001), exp)
+    coarse = simulate_step(thesis_muscle(), replace(pair, dt_s=dt_s), exp)
     c = coarse["contraction_pct"]
     assert np.all(np.isfinite(c))
     after = coarse["time_s"] > 0.5
@@ -98,7 +99,7 @@ def test_integration_stable_at_robot_step_sizes(dt_s):
 
 def test_explicit_euler_would_diverge_at_5ms():
     """The reason for the implicit step: the pair's fast eigenvalue is far beyond 2 / 5 ms."""
-    muscle = MuscleConfig()
+    muscle = thesis_muscle()
     law_slope = abs(-93.8) * 100 / muscle.nominal_length_m  # |dF/dx| at x = 0 [N/m]
     s_min = min(muscle.spring.stiffness_n_per_m)
     fast_rate = (law_slope + s_min) / (muscle.tau_s * s_min)
@@ -106,7 +107,7 @@ def test_explicit_euler_would_diverge_at_5ms():
 
 
 def test_calibration_recovers_thesis_from_a_wrong_table():
-    muscle = MuscleConfig()
+    muscle = thesis_muscle()
     wrong = replace(muscle, spring=replace(muscle.spring, stiffness_n_per_m=[1000.0] * 8))
     pair = PairConfig(duration_s=1.5, dt_s=0.002)
     table, fitted = calibrate_spring(wrong, pair)
@@ -121,8 +122,8 @@ def test_calibration_recovers_thesis_from_a_wrong_table():
 
 
 def test_pair_command_and_torque():
-    pairs = AntagonisticPairs(MuscleConfig(), 3)
-    pairs.reset(212.0, MuscleConfig().rest_contraction_pct)
+    pairs = AntagonisticPairs(thesis_muscle(), 3)
+    pairs.reset(212.0, thesis_muscle().rest_contraction_pct)
     v = pairs.voltages_v(np.array([0.0, 1.0, -1.0]))
     np.testing.assert_allclose(v, [[2.12, 2.12], [2.83, 1.41], [1.41, 2.83]])
     pairs.step(v, 0.005)

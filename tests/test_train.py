@@ -66,7 +66,7 @@ def test_killed_run_resumes_without_losing_or_duplicating(tmp_path):
 
     run_dir = tmp_path / "killed"
     args = [sys.executable, "-m", "pamrun.cli", "train", *TINY, "train.max_frames=1400",
-            "train.save_threshold=-1e9", "train.keep_saved=50", f"hydra.run.dir={run_dir}"]
+            "train.save_threshold=-1e9", "train.keep_saved=1000", f"hydra.run.dir={run_dir}"]
     proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     deadline = time.time() + 240
     last = run_dir / "checkpoints" / "last.pt"

@@ -26,13 +26,14 @@ from pamrun.config.checks import CONF_DIR, ConfigError, _require
 from pamrun.config.experiments import (JOB_METRICS, EvalConfig, OptunaConfig, PairConfig, StepExperiment,
                                        SweepConfig)
 from pamrun.config.learning import AlgoConfig, TrainConfig
-from pamrun.config.robot import SPRING_FILE, BodyConfig, MuscleConfig, RegulatorConfig, SpringConfig
+from pamrun.config.robot import (SPRING_FILE, BodyConfig, JointAngles, JointCounts, JointRadii, MuscleConfig, RegulatorConfig,
+                                 SpringConfig, check_muscle_stretch)
 from pamrun.config.task import EnvConfig, RewardConfig
 
 __all__ = ["CONF_DIR", "SPRING_FILE", "JOB_METRICS", "ConfigError", "Config", "RegulatorConfig", "SpringConfig",
-           "MuscleConfig", "BodyConfig", "RewardConfig", "EnvConfig", "AlgoConfig", "TrainConfig", "EvalConfig",
+           "MuscleConfig", "JointAngles", "JointCounts", "JointRadii", "check_muscle_stretch", "BodyConfig", "RewardConfig", "EnvConfig", "AlgoConfig", "TrainConfig", "EvalConfig",
            "OptunaConfig", "SweepConfig", "StepExperiment", "PairConfig", "register_configs", "validate",
-           "to_object", "ValidateConfig", "check_command", "upgrade_saved_config", "usable_cores", "parallel_jobs"]
+           "to_object", "preset", "ValidateConfig", "check_command", "upgrade_saved_config", "usable_cores", "parallel_jobs"]
 
 
 # --------------------------------------------------------------------------- root
@@ -58,6 +59,10 @@ class Config:
 
     def __post_init__(self) -> None:
         _require(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
+        try:
+            check_muscle_stretch(self.muscle, self.body)
+        except ConfigError as err:
+            raise ConfigError(f"muscle.{err.key}", err.message) from None
 
 
 # Keys renamed since a config could have been saved with a run: old section.key -> new key.
@@ -71,6 +76,43 @@ def upgrade_saved_config(data: dict) -> dict:
     for section, renames in RENAMED_KEYS.items():
         if isinstance(data.get(section), dict):
             data[section] = {renames.get(k, k): v for k, v in data[section].items()}
+    muscle = data.get("muscle")
+    if isinstance(muscle, dict) and "size" not in muscle:
+        data["muscle"] = _pre_sizing_muscle(muscle)
+    return data
+
+
+def _pre_sizing_muscle(muscle: dict) -> dict:
+    """A muscle section saved before the sizing options (before the sizing options): the keys it lacks
+    get the values its robot had (one DMSP-20 per direction, automatic radii, the 10
+    antagonistic commands); ``kinematic_max_contraction_pct`` becomes ``min_contraction_pct``."""
+    muscle = dict(muscle)
+    rest = float(muscle.get("kinematic_rest_contraction_pct", 6.5))
+    most = float(muscle.pop("kinematic_max_contraction_pct", 13.0))
+    muscle.setdefault("min_contraction_pct", 2 * rest - most)
+    muscle.setdefault("size", "DMSP-20")
+    muscle.setdefault("count", {name: 1 for name in JointCounts.__dataclass_fields__})
+    muscle.setdefault("neutral_deg", {name: 0.0 for name in JointCounts.__dataclass_fields__})
+    muscle.setdefault("command", "antagonistic")
+    for key, value in (("nominal_length_m", 0.26), ("max_pressure_kpa", 800.0), ("v0_v", 2.12),
+                       ("dv_max_v", 0.71), ("coupling", "thesis")):
+        muscle.setdefault(key, value)
+    muscle["regulator"] = {"lag_s": 0.0, **dict(muscle.get("regulator") or {})}
+    return muscle
+
+
+def preset(group: str, name: str) -> dict:
+    """What ``conf/<group>/<name>.yaml`` sets, as a dict for e.g. ``PamWalkerEnv(muscle=...)``.
+
+    Its Hydra defaults list is left out (the dataclass defaults equal those sub-presets)."""
+    import yaml
+
+    path = CONF_DIR / group / f"{name}.yaml"
+    if not path.is_file():
+        known = sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
+        raise ConfigError(group, f"no preset {name!r}; known: {', '.join(known)}")
+    data = yaml.safe_load(path.read_text()) or {}
+    data.pop("defaults", None)
     return data
 
 

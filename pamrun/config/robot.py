@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from pamrun.config.checks import CONF_DIR, _non_negative, _positive, _require
 
@@ -17,8 +17,12 @@ class RegulatorConfig:
 
     Input 0-10 V, output 0.1-10 bar. The thesis calls the relation linear and, with
     V0 = 2.12 V +- 0.71 V, quotes pressures of "about 1.4 to 3 bar" (§9.5): that is
-    1 bar per volt, which we take. Its dynamics are not modelled in the thesis;
-    ``lag_s`` adds an optional first-order lag (0 = ideal regulator, the thesis).
+    1 bar per volt, which we take. The thesis does not model the regulator's dynamics
+    (an ideal regulator, ``lag_s = 0``, as ``muscle=thesis`` keeps). A real proportional
+    regulator filling a muscle needs tens of milliseconds: Festo's proportional pressure
+    regulators are quoted at about 50-100 ms response time, and the Lucy biped's team
+    (VUB) found off-the-shelf regulating valves "too heavy and too slow" for walking. We
+    take the fast end, a first-order lag of 50 ms (``lag_s``), for the default robot.
     """
 
     gain_kpa_per_v: float = 100.0
@@ -26,7 +30,7 @@ class RegulatorConfig:
     max_voltage_v: float = 10.0
     min_pressure_kpa: float = 10.0  # 0.1 bar
     max_pressure_kpa: float = 1000.0  # 10 bar
-    lag_s: float = 0.0
+    lag_s: float = 0.05  # first-order time constant [s]; 0 = ideal (the thesis)
 
     def __post_init__(self) -> None:
         _positive(self, "gain_kpa_per_v", "max_voltage_v", "max_pressure_kpa")
@@ -34,6 +38,9 @@ class RegulatorConfig:
         _require(self.min_voltage_v < self.max_voltage_v, "max_voltage_v", "must exceed min_voltage_v")
         _require(self.min_pressure_kpa < self.max_pressure_kpa, "max_pressure_kpa", "must exceed min_pressure_kpa")
 
+
+# The spring table S(P) is for the thesis' DMSP-20-260: a muscle of length L0 has S * L_ref / L0.
+SPRING_REFERENCE_LENGTH_M = 0.26
 
 SPRING_FILE = CONF_DIR / "muscle" / "spring" / "calibrated.yaml"
 
@@ -91,24 +98,121 @@ class SpringConfig:
         _require(self.hysteresis in ("none",), "hysteresis", f"unknown law {self.hysteresis!r}; known: none")
 
 
+# Festo DMSP fluidic muscles by inner diameter: catalogue maximum force [N] (Festo, Fluidic
+# Muscle DMSP/MAS catalogue; THESIS.md §8). The thesis' force polynomial (Table 8.4) is for
+# the DMSP-20; another size scales it by the ratio of these ratings (see MuscleConfig).
+MUSCLE_RATED_FORCE_N = {"DMSP-10": 630.0, "DMSP-20": 1500.0, "DMSP-40": 6000.0}
+FITTED_SIZE = "DMSP-20"
+COUPLINGS = ("thesis", "kinematic")
+COMMANDS = ("antagonistic", "independent")
+
+
+@dataclass
+class JointCounts:
+    """Muscles in parallel per direction, per joint (both legs alike)."""
+
+    hip_pitch: int = 1
+    hip_roll: int = 1
+    knee: int = 2
+    ankle_pitch: int = 2
+    ankle_roll: int = 1
+
+    def __post_init__(self) -> None:
+        for name, value in vars(self).items():
+            _require(1 <= value <= 8, name, f"must be 1..8 muscles per direction, got {value}")
+
+
+@dataclass
+class JointRadii:
+    """Pulley radius per joint [mm]; 0 = automatic (see MuscleConfig.min_contraction_pct)."""
+
+    hip_pitch: float = 0.0
+    hip_roll: float = 0.0
+    knee: float = 0.0
+    ankle_pitch: float = 0.0
+    ankle_roll: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in vars(self):
+            _non_negative(self, name)
+
+
+@dataclass
+class JointAngles:
+    """Per-joint angle [deg] at which both muscles of the pair sit at their rest contraction."""
+
+    hip_pitch: float = 0.0
+    hip_roll: float = 0.0
+    knee: float = -5.0
+    ankle_pitch: float = 0.0
+    ankle_roll: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name, value in vars(self).items():
+            _require(math.isfinite(value) and abs(value) <= 90, name, f"must lie in [-90, 90] deg, got {value}")
+
+
 @dataclass
 class MuscleConfig:
-    """One Festo DMSP-20-260N fluidic muscle and its antagonistic command (thesis §8.3, §9.5)."""
+    """The robot's pneumatic muscles, how they sit on the joints and how they are commanded.
+
+    Defaults are the robot that can stand and walk (``muscle=sized``, chosen with
+    ``pamrun capacity``: see the README); ``muscle=thesis`` restores the thesis' model
+    exactly (one DMSP-20-260 per direction, thesis coupling, 2.12 +- 0.71 V, 8 bar, ideal
+    regulator). Fields:
+
+    * ``size``: DMSP-10, -20 or -40. The force law F(x, P) is the thesis' DMSP-20 fit;
+      another size multiplies it by the ratio of Festo's rated forces (0.42, 1, 4). Chou &
+      Hannaford's model scales force with D0^2 at equal contraction, which the 20 -> 40 mm
+      step matches (x4) and the 10 -> 20 mm step does not (x2.4, not x4): the ratings are the
+      measured scale. Contraction stays in % of the nominal length, and the spring S and
+      damper D = tau S scale with the force, so a pair's step response in % is the same at
+      every size (§10.1 holds for all).
+    * ``nominal_length_m``: DMSP is sold by length (40 mm to 9 m); the stroke in metres,
+      and with it the work, scales with it.
+    * ``count``: muscles in parallel per direction at each joint; forces add.
+    * ``radius_mm``: pulley radius per joint; 0 picks the largest radius that keeps the
+      stretched muscle at or above ``min_contraction_pct`` at the joint's farthest limit,
+      r = (c_rest - c_min) / 100 * L0 / max|limit - neutral|: the muscle covers the whole range. A
+      larger explicit radius would over-stretch the muscle and is refused at config time,
+      naming the key; a smaller one is allowed. The contracting muscle may go slack near a
+      limit (its force is 0 past the zero-force contraction: a muscle cannot push).
+    * ``neutral_deg``: the angle of each joint at which both muscles sit at
+      ``kinematic_rest_contraction_pct`` (zero torque at equal pressures). 0 is the
+      standing pose, except the knee: at -5 deg, past its extension stop, equal pressures
+      press the straight knee into the stop (about 7 N m at zero action), which locks it
+      as a standing person's knee is locked; without it the knee buckles within ~3 s.
+    * ``min_contraction_pct``: the most a muscle may be stretched, as a (negative)
+      contraction, at least -3 % (the bottom of the thesis' force fit, §8.3, inside
+      Festo's permitted pre-tension of about 5 %). The default -1 % is chosen with
+      ``pamrun openloop``: at -2 or -3 % the deflated, stretched antagonist pulls back so
+      hard that the agonist no longer reaches the hip-pitch limits against gravity.
+    * ``command``: ``antagonistic`` is the thesis' 10 actions, V1,2 = V0 +- dV a (§9.5);
+      ``independent`` gives 20 actions, V = V0 + dV a per muscle, so a policy sets each
+      pair's co-contraction (stiffness) as well as its torque. Zero action is V0 in both.
+    """
 
     force_law: str = "thesis_polynomial"  # F(x, P) of Table 8.4
-    dynamics: str = "first_order"  # D x' + S x = Fce - FL (§8.3)
-    nominal_length_m: float = 0.26  # DMSP-20-260N: 260 mm nominal length
-    max_pressure_kpa: float = 800.0  # top of the polynomial's fitted range (§8.3): 8 bar
+    dynamics: str = "first_order"  # D x' + S x = Fce - FL (§8.3), used by the thesis coupling
+    size: str = "DMSP-40"  # thesis: DMSP-20
+    nominal_length_m: float = 0.30  # thesis: 0.26 (DMSP-20-260N)
+    count: JointCounts = field(default_factory=JointCounts)  # thesis: one per direction
+    radius_mm: JointRadii = field(default_factory=JointRadii)
+    neutral_deg: JointAngles = field(default_factory=JointAngles)
+    # Festo rates the DMSP for 0-6 bar; the thesis drove it to 8 bar, the top of its fit (§8.3).
+    max_pressure_kpa: float = 600.0
     tau_s: float = 0.3  # D = tau * S (§8.3)
-    rest_contraction_pct: float = 14.06  # zero-force contraction at 176.4 kPa (§10.1)
-    v0_v: float = 2.12  # common command voltage V0 (§9.5)
-    dv_max_v: float = 0.71  # |dV| <= 0.71 V (§9.5)
-    # Muscle-joint coupling (see pamrun/actuation.py): "thesis" (contraction is a dynamic
-    # state, the thesis' Simulink model) or "kinematic" (contraction follows the joint).
-    coupling: str = "thesis"
-    # Not in the thesis: pre-tension and stroke of each pair (pulley radii follow from them).
-    kinematic_rest_contraction_pct: float = 6.5
-    kinematic_max_contraction_pct: float = 13.0
+    rest_contraction_pct: float = 14.06  # thesis coupling: zero-force contraction at 176.4 kPa (§10.1)
+    command: str = "antagonistic"
+    v0_v: float = 3.0  # common command voltage V0; thesis 2.12 V (§9.5)
+    dv_max_v: float = 3.0  # |dV| bound; thesis 0.71 V (§9.5), i.e. 1.4-2.8 bar
+    # Muscle-joint coupling (see pamrun/actuation.py): "kinematic" (contraction follows the
+    # joint through its pulley) or "thesis" (contraction is a dynamic state, the thesis' Simulink model).
+    coupling: str = "kinematic"
+    # Kinematic coupling, not in the thesis: both muscles' contraction in the standing pose
+    # (a pre-tensioned pair: zero torque at zero action), and the most either may be stretched.
+    kinematic_rest_contraction_pct: float = 9.0
+    min_contraction_pct: float = -1.0
     regulator: RegulatorConfig = field(default_factory=RegulatorConfig)
     spring: SpringConfig = field(default_factory=SpringConfig)
 
@@ -117,18 +221,54 @@ class MuscleConfig:
 
         _require(self.force_law in FORCE_LAWS, "force_law", f"unknown {self.force_law!r}; known: {sorted(FORCE_LAWS)}")
         _require(self.dynamics in DYNAMICS, "dynamics", f"unknown {self.dynamics!r}; known: {sorted(DYNAMICS)}")
+        _require(self.size in MUSCLE_RATED_FORCE_N, "size",
+                 f"unknown {self.size!r}; known: {', '.join(MUSCLE_RATED_FORCE_N)}")
         _positive(self, "nominal_length_m", "max_pressure_kpa", "tau_s", "v0_v")
         _non_negative(self, "dv_max_v")
+        _require(0.04 <= self.nominal_length_m <= 9.0, "nominal_length_m",
+                 f"must lie in [0.04, 9] m (Festo's DMSP lengths), got {self.nominal_length_m}")
         _require(-3.0 <= self.rest_contraction_pct < 30.0, "rest_contraction_pct", "must lie in [-3, 30) %")
-        _require(self.coupling in ("thesis", "kinematic"), "coupling", f"unknown {self.coupling!r}; known: thesis, kinematic")
-        _require(
-            0.0 <= 2 * self.kinematic_rest_contraction_pct - self.kinematic_max_contraction_pct
-            and self.kinematic_rest_contraction_pct < self.kinematic_max_contraction_pct <= 28.0,
-            "kinematic_max_contraction_pct",
-            "must exceed kinematic_rest_contraction_pct, be <= 28 % and <= twice the rest contraction "
-            "(so the antagonist never stretches below 0 %)",
-        )
+        _require(self.coupling in COUPLINGS, "coupling", f"unknown {self.coupling!r}; known: {', '.join(COUPLINGS)}")
+        _require(self.command in COMMANDS, "command", f"unknown {self.command!r}; known: {', '.join(COMMANDS)}")
+        _require(-3.0 <= self.min_contraction_pct <= 0.0, "min_contraction_pct",
+                 f"must lie in [-3, 0] % (the force law is fitted down to -3 %), got {self.min_contraction_pct}")
+        _require(self.min_contraction_pct < self.kinematic_rest_contraction_pct <= 25.0,
+                 "kinematic_rest_contraction_pct",
+                 f"must exceed min_contraction_pct ({self.min_contraction_pct} %) and be <= 25 % (the DMSP's "
+                 f"stroke), got {self.kinematic_rest_contraction_pct}")
         _require(self.dv_max_v <= self.v0_v, "dv_max_v", f"must be <= v0_v ({self.v0_v} V): a voltage cannot go negative")
+
+    @property
+    def force_scale(self) -> float:
+        """Force of one muscle of ``size`` relative to the fitted DMSP-20 (rated-force ratio)."""
+        return MUSCLE_RATED_FORCE_N[self.size] / MUSCLE_RATED_FORCE_N[FITTED_SIZE]
+
+    def reach_rad(self, joint: str, limits_deg: list[float]) -> float:
+        """How far [rad] the joint's farthest limit lies from its neutral angle."""
+        neutral = getattr(self.neutral_deg, joint)
+        return math.radians(max(abs(limits_deg[0] - neutral), abs(limits_deg[1] - neutral)))
+
+    def radius_m(self, joint: str, reach_rad: float) -> float:
+        """Pulley radius [m] of a joint whose farthest limit is ``reach_rad`` from its neutral angle."""
+        explicit = getattr(self.radius_mm, joint) / 1000.0
+        if explicit > 0:
+            return explicit
+        return (self.kinematic_rest_contraction_pct - self.min_contraction_pct) / 100.0 * self.nominal_length_m / reach_rad
+
+
+def check_muscle_stretch(muscle: MuscleConfig, body: "BodyConfig") -> None:
+    """An explicit pulley radius must not stretch a muscle past ``min_contraction_pct``."""
+    for joint in JointRadii.__dataclass_fields__:
+        reach = muscle.reach_rad(joint, getattr(body, f"{joint}_limits_deg"))
+        radius = muscle.radius_m(joint, reach)
+        stretched = muscle.kinematic_rest_contraction_pct - 100.0 * radius * reach / muscle.nominal_length_m
+        largest_mm = 1000.0 * replace(muscle, radius_mm=JointRadii()).radius_m(joint, reach)
+        _require(
+            stretched >= muscle.min_contraction_pct - 1e-9,
+            f"radius_mm.{joint}",
+            f"{radius * 1000:.1f} mm stretches a muscle to {stretched:.2f} % at the {math.degrees(reach):.1f} deg "
+            f"limit, past min_contraction_pct ({muscle.min_contraction_pct} %); at most {largest_mm:.1f} mm",
+        )
 
 
 # --------------------------------------------------------------------------- body
@@ -162,8 +302,9 @@ class BodyConfig:
     joint_damping_nms_per_rad: float = 1.0
     # Joint limits: the thesis' Simscape stop is a spring-damper (1e4 N m/rad, 10 N m s/rad,
     # Table 8.2). MuJoCo's soft limit cannot be one (see pamrun/body.py); we use its own stiff,
-    # critically damped stop: time constant [s] and damping ratio of the constraint.
-    joint_limit_timeconst_s: float = 0.01
+    # critically damped stop: time constant [s] and damping ratio of the constraint. 5 ms holds
+    # the sized muscles (up to ~100 N m at a limit) within 2 deg; 10 ms let the ankle pass by 4.
+    joint_limit_timeconst_s: float = 0.005  # 2 physics steps, MuJoCo's stiffest stable stop
     joint_limit_dampratio: float = 1.0
     # Left-leg limits, degrees from the standing pose (Table 8.3)
     hip_pitch_limits_deg: list[float] = field(default_factory=lambda: [-45.0, 45.0])

@@ -1,0 +1,152 @@
+"""What the muscles can do against what standing and walking demand (``pamrun capacity``).
+
+For each joint of the left leg (the right one mirrors it) and the configured muscles:
+
+* **Envelope**: the largest torque the pair gives towards each direction at every angle
+  of the joint's range, with the agonist at the top of the command band and the
+  antagonist at its bottom (``band``: V0 +- dV through the regulator), and at full
+  pressure (``full``: the muscle's ``max_pressure_kpa`` against the regulator's minimum).
+  In the kinematic coupling both muscles' contractions follow the angle. In the thesis
+  coupling the contractions are not tied to the angle, and a pair's torque lasts only
+  while they move after a pressure change (~20 ms) before settling near 0: its envelope
+  is that **burst**, the torque at the instant the pressures are set with both muscles at
+  the rest contraction, the same at every angle; its settled torque and its stiffness are 0.
+* **Intrinsic stiffness** -dT/dtheta at the standing pose with both muscles at the same
+  pressure (co-contraction), at a few pressures and at the zero-action pressure (V0).
+* **Demand**, with its source:
+  - walking: the peak joint moment of human walking per kg of body mass (below), times
+    the robot's mass, required anywhere in the joint's walking range, in either direction
+    (conservative: human flexor and extensor peaks differ, a symmetric pair serves both);
+  - standing: holding a 5 deg lean of everything above the joint (two legs share it), and
+    the gravitational stiffness m g h of the same inverted pendulum per leg (thesis §8 of
+    THESIS.md; Loram & Lakie 2002: human intrinsic ankle stiffness is ~0.9 m g h).
+* **Margin** = capacity / demand: the envelope's weakest point over the walking range
+  against the walking peak, and the zero-action stiffness against m g h.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict
+from typing import Any
+
+import numpy as np
+
+from pamrun.config import BodyConfig, MuscleConfig
+
+# Peak joint moments of human walking at natural cadence, N m per kg of body mass (Winter,
+# "Biomechanics and Motor Control of Human Movement", 4th ed., 2009, gait data; sagittal
+# peaks as collected in THESIS.md §8; frontal: hip abductor and ankle invertor/evertor
+# moments from Winter's frontal-plane data, MacKinnon & Winter, J. Biomech. 26, 1993).
+WALKING_PEAK_NM_PER_KG = {"hip_pitch": 1.0, "hip_roll": 1.0, "knee": 0.8, "ankle_pitch": 1.5, "ankle_roll": 0.3}
+# Joint angles of human walking [deg], in the robot's convention (hip extension, knee flexion,
+# plantar flexion, left hip abduction and ankle inversion positive; Winter 2009, Perry 1992):
+# hip 30 deg flexion to 20 extension, knee 0-65, ankle 15 dorsi- to 20 plantar flexion, +-10 roll.
+WALKING_RANGE_DEG = {"hip_pitch": (-30.0, 20.0), "hip_roll": (-10.0, 10.0), "knee": (0.0, 65.0),
+                     "ankle_pitch": (-15.0, 20.0), "ankle_roll": (-10.0, 10.0)}
+LEAN_DEG = 5.0  # a lean to hold while standing (THESIS.md §8: 2, 5 or 10 deg)
+REQUIRED_MARGIN = 1.5  # capacity over walking demand a robot that should learn to walk needs
+STIFFNESS_LEVELS_KPA = (100.0, 200.0, 300.0, 400.0, 600.0, 800.0)
+# Bodies that move with each joint's distal side, i.e. not carried by it (left leg; both legs share).
+_BELOW = {"ankle": ("foot",), "knee": ("shin", "foot"), "hip": ("thigh", "shin", "foot")}
+
+
+def _gravity_loads(body: BodyConfig) -> dict[str, dict[str, float]]:
+    """Per joint group: mass carried above it [kg] and its centre-of-mass height above the joint [m]."""
+    import mujoco
+
+    from pamrun.body import SIDES, build_model
+
+    model = build_model(body)
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "stand"))
+    mujoco.mj_forward(model, data)
+    out = {"robot": {"mass_kg": float(model.body_subtreemass[0]), "com_height_m": float(data.subtree_com[0][2])}}
+    for group, below in _BELOW.items():
+        excluded = {f"{side}_{b}" for side in SIDES for b in below}
+        ids = [i for i in range(1, model.nbody) if model.body(i).name not in excluded]
+        mass = float(model.body_mass[ids].sum())
+        com_z = float((model.body_mass[ids] * data.xipos[ids, 2]).sum() / mass)
+        anchor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"left_{group}" if group == "knee"
+                                   else f"left_{group}_pitch")
+        out[group] = {"mass_kg": mass, "height_m": com_z - float(data.xanchor[anchor][2])}
+    return out
+
+
+def analyse(muscle: MuscleConfig, body: BodyConfig, n_angles: int = 91) -> dict[str, Any]:
+    """The capacity table of every joint (see the module docstring); plain data for capacity.json."""
+    from pamrun.actuation import MuscleDrive, joint_limits_rad
+    from pamrun.body import JOINTS, LEG_JOINTS
+
+    drive = MuscleDrive(muscle, body)
+    reg = drive.pairs.regulator
+    band = reg.target_pressure_kpa(np.array([muscle.v0_v + muscle.dv_max_v, muscle.v0_v - muscle.dv_max_v]))
+    band = np.minimum(band, muscle.max_pressure_kpa)
+    full = np.array([muscle.max_pressure_kpa, muscle.regulator.min_pressure_kpa])
+    zero_kpa = float(min(reg.target_pressure_kpa(np.array(muscle.v0_v)), muscle.max_pressure_kpa))
+    loads = _gravity_loads(body)
+    mass = loads["robot"]["mass_kg"]
+    limits = joint_limits_rad(body)
+    n = len(JOINTS)
+
+    def torque(j: int, angle: np.ndarray, p1: float, p2: float) -> np.ndarray:
+        """Torque at joint j over angles with muscle 1 at p1 and muscle 2 at p2 [kPa]."""
+        angles = np.zeros((len(angle), n))
+        angles[:, j] = angle
+        pressure = np.broadcast_to(np.array([p1, p2]), (len(angle), n, 2))
+        return drive.static_torque_nm(angles, pressure)[:, j]
+
+    def stiffness(j: int, p_kpa: float, step_rad: float = 1e-3) -> float:
+        t = torque(j, np.array([-step_rad, step_rad]), p_kpa, p_kpa)
+        return float(-(t[1] - t[0]) / (2 * step_rad))
+
+    joints = {}
+    for name in LEG_JOINTS:
+        j = JOINTS.index(f"left_{name}")
+        lo, hi = limits[j]
+        angle = np.linspace(lo, hi, n_angles)
+        walk_lo, walk_hi = (math.radians(v) for v in WALKING_RANGE_DEG[name])
+        in_walk = (angle >= walk_lo - 1e-9) & (angle <= walk_hi + 1e-9)
+        envelope = {}
+        for label, (p_hi, p_lo) in (("band", band), ("full", full)):
+            plus, minus = torque(j, angle, p_hi, p_lo), torque(j, angle, p_lo, p_hi)
+            envelope[label] = {"plus_nm": plus.round(3).tolist(), "minus_nm": minus.round(3).tolist(),
+                               "walking_min_nm": float(min(plus[in_walk].min(), -minus[in_walk].max()))}
+        group = "ankle" if name.startswith("ankle") else "knee" if name == "knee" else "hip"
+        load = loads[group]
+        walk_demand = WALKING_PEAK_NM_PER_KG[name] * mass
+        gravity_k = load["mass_kg"] * 9.81 * load["height_m"] / 2  # per leg
+        k_zero = stiffness(j, zero_kpa)
+        joints[name] = {
+            "radius_mm": round(float(drive.radius_m[j]) * 1000, 2),
+            "muscles_per_direction": int(getattr(muscle.count, name)),
+            "limits_deg": [round(math.degrees(lo), 3), round(math.degrees(hi), 3)],
+            "walking_range_deg": list(WALKING_RANGE_DEG[name]),
+            "angle_deg": np.degrees(angle).round(3).tolist(),
+            "envelope": envelope,
+            "walking_demand_nm": round(walk_demand, 3),
+            "walking_margin": round(envelope["band"]["walking_min_nm"] / walk_demand, 3),
+            "walking_margin_full": round(envelope["full"]["walking_min_nm"] / walk_demand, 3),
+            "lean_demand_nm": round(gravity_k * math.sin(math.radians(LEAN_DEG)), 3),
+            "stiffness_nm_per_rad": {f"{p:.0f}": round(stiffness(j, p), 2) for p in STIFFNESS_LEVELS_KPA
+                                     if p <= muscle.max_pressure_kpa},
+            "stiffness_zero_action_nm_per_rad": round(k_zero, 2),
+            "gravity_stiffness_nm_per_rad": round(gravity_k, 2),
+            "stiffness_margin": round(k_zero / gravity_k, 3),
+        }
+    walks = all(v["walking_margin"] >= REQUIRED_MARGIN for v in joints.values())
+    ankle_stiff = joints["ankle_pitch"]["stiffness_margin"] >= 1.0
+    return {
+        "coupling": muscle.coupling,
+        "muscle": asdict(muscle),
+        "robot_mass_kg": round(mass, 3),
+        "com_height_m": round(loads["robot"]["com_height_m"], 4),
+        "band_kpa": [round(float(v), 1) for v in band],
+        "full_kpa": [round(float(v), 1) for v in full],
+        "zero_action_kpa": round(zero_kpa, 1),
+        "required_margin": REQUIRED_MARGIN,
+        "lean_deg": LEAN_DEG,
+        "joints": joints,
+        "verdict": {"walking_margin_ok": walks, "ankle_stiffness_ok": ankle_stiff,
+                    "min_walking_margin": min(v["walking_margin"] for v in joints.values())},
+    }
