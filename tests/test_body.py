@@ -145,11 +145,14 @@ def test_every_body_centre_of_mass_at_the_standing_pose(height_m, mass_kg):
     hip_z = foot_z + shank + thigh
     expected_z = {"torso": hip_z + pelvis["z_m"] / 2, "thigh": hip_z - 0.433 * thigh,
                   "shin": foot_z + shank - 0.433 * shank, "foot": foot_z / 2}
-    for name in ("torso", "right_thigh", "left_shin", "right_foot"):
-        com = data.xipos[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)]
-        assert com[2] == pytest.approx(expected_z[name.split("_")[-1]], abs=2e-3), name
-    foot = data.xipos[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "left_foot")]
-    assert foot[0] == pytest.approx(0.0569 * height_m / 1.8, abs=1e-3)
+    hip_y = pelvis["hip_width_m"] / 2
+    for i in range(1, model.nbody):
+        name = model.body(i).name
+        part = name.split("_")[-1]
+        side = {"right": -1.0, "left": 1.0}.get(name.split("_")[0], 0.0)
+        x = 0.0569 * height_m / 1.8 if part == "foot" else 0.0
+        np.testing.assert_allclose(data.xipos[i], [x, side * hip_y, expected_z[part]], atol=2e-3, err_msg=name)
+    assert model.nbody - 1 == 7
     # The whole robot's centre of mass: ~0.40 H up (0.715 m at 1.80 m), over the feet.
     total = (sum(seg[k]["mass_kg"] * expected_z[n] for k, n in
                  (("upper_leg", "thigh"), ("lower_leg", "shin"), ("foot", "foot"))) * 2
