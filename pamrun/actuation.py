@@ -24,7 +24,8 @@ Two couplings of muscle and joint (``muscle.coupling``):
 
 Pulley radii and rest contractions are not in the thesis. Both muscles of a pair sit at
 ``kinematic_rest_contraction_pct`` at the joint's neutral angle (``muscle.neutral_deg``: the
-standing pose, except the knee, whose pair presses it into its extension stop). Each joint's radius is ``muscle.radius_mm.<joint>`` or, at 0, the largest
+standing pose, except the knee, whose pair presses it into its extension stop). Each
+joint's radius is ``muscle.radius_mm.<joint>`` or, at 0, the largest
 that keeps the stretched muscle at or above ``min_contraction_pct`` at the farthest limit:
 
     r_j = (c_rest - c_min) / 100 * L0 / max(|theta_lo - theta_n|, |theta_hi - theta_n|)
@@ -63,10 +64,9 @@ def neutral_angles_rad(muscle: MuscleConfig) -> np.ndarray:
     """(10,) angle of each joint where its pair is balanced at equal pressures, JOINTS order.
 
     The right leg mirrors the roll joints (as its limits do)."""
-    from pamrun.body import SIDES, LEG_JOINTS
+    from pamrun.body import LEG_JOINTS, SIDES, mirror_sign
 
-    return np.deg2rad([getattr(muscle.neutral_deg, j) * (-1 if side == "right" and j.endswith("roll") else 1)
-                       for side in SIDES for j in LEG_JOINTS])
+    return np.deg2rad([getattr(muscle.neutral_deg, j) * mirror_sign(side, j) for side in SIDES for j in LEG_JOINTS])
 
 
 def force_scales(muscle: MuscleConfig) -> np.ndarray:

@@ -116,13 +116,24 @@ def segment_table(cfg: BodyConfig) -> list[dict[str, float | str]]:
     return rows
 
 
+def mirror_sign(side: str, joint: str) -> float:
+    """-1 where the right leg mirrors the left (its roll joints, Table 8.3), else +1."""
+    return -1.0 if side == "right" and joint.endswith("roll") else 1.0
+
+
 def joint_limits_deg(cfg: BodyConfig, side: str) -> dict[str, tuple[float, float]]:
     """Limits [deg] of one leg's joints; the right leg mirrors the roll joints (Table 8.3)."""
     out = {}
     for joint in LEG_JOINTS:
         lo, hi = getattr(cfg, f"{joint}_limits_deg")
-        out[joint] = (-hi, -lo) if side == "right" and joint.endswith("roll") else (lo, hi)
+        out[joint] = (-hi, -lo) if mirror_sign(side, joint) < 0 else (lo, hi)
     return out
+
+
+def joint_addresses(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the JOINTS' angles in ``qpos`` and velocities in ``qvel``, JOINTS order."""
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name) for name in JOINTS]
+    return np.array([model.jnt_qposadr[j] for j in ids]), np.array([model.jnt_dofadr[j] for j in ids])
 
 
 def standing_height_m(cfg: BodyConfig) -> float:
@@ -293,7 +304,7 @@ def contact_stiffness_n_per_m(cfg: BodyConfig, robot_mass_kg: float) -> tuple[fl
 
 
 def build_model(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = False) -> mujoco.MjModel:
-    """Compiled model with the joint-limit solref set from the thesis' values."""
+    """Compiled model whose foot contacts sink by the designed overlap (:func:`match_contact_overlap`)."""
     model = build_spec(cfg, timestep_s, fixed_torso).compile()
     match_contact_overlap(model, cfg)
     return model

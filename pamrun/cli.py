@@ -3,7 +3,9 @@
 ``pamrun <command> [<subcommand>] [key=value ...] [hydra flags]``: the words before the
 first override pick the task; the rest goes to Hydra untouched, so ``--cfg job``,
 ``--help``, ``-m`` (multirun) and every override work the same for every command.
-Adding a command is one entry in :data:`COMMANDS`.
+Adding a command is one entry in :data:`COMMANDS` (and, for its own checks, a
+``check_config`` function in its module); :data:`CONFIG_NAMES` and :data:`READ_ONLY` say
+when it composes another primary config or only reads a directory.
 """
 
 from __future__ import annotations
@@ -13,9 +15,17 @@ import logging
 import os
 import sys
 
-from pamrun.config import CONF_DIR
+from typing import Any
+
+from hydra.experimental.callback import Callback
+from omegaconf import DictConfig, OmegaConf
+
+from pamrun import runtime  # noqa: F401  (registers the config resolvers)
+from pamrun.config import CONF_DIR, ConfigError, validate
 
 # command words -> (module, function, one-line help). Functions take the composed DictConfig.
+# A module may also define ``check_config(config)``: what its command needs beyond valid
+# values (e.g. ``pamrun eval``: a checkpoint to read), checked before its directory exists.
 COMMANDS: dict[str, tuple[str, str, str]] = {
     "muscle step": ("pamrun.lab", "muscle_step", "step responses of one antagonistic pair vs thesis §10.1"),
     "muscle calibrate": ("pamrun.lab", "muscle_calibrate", "fit the spring table S(P) to the §10.1 step responses"),
@@ -34,6 +44,16 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
 CONFIG_NAMES = {"sweep": "sweep"}
 # Commands that only read a directory (dir=...): they write nothing of Hydra's there.
 READ_ONLY = ("sweep summarize", "plot training")
+# Config sections `pamrun <command> --help` documents (every key of them, with its doc).
+ROBOT = ("muscle", "body")
+TASK = ("seed", *ROBOT, "reward", "env")
+HELP_SECTIONS: dict[str, tuple[str, ...]] = {
+    "muscle step": ("muscle", "pair"), "muscle calibrate": ("muscle", "pair"), "muscle curves": ("muscle",),
+    "body": ("body",), "openloop": (*ROBOT, "env"), "capacity": ROBOT,
+    "train": (*TASK, "algo", "train", "resume"), "eval": ("ckpt", "eval", *TASK),
+    "sweep": ("sweep", *TASK, "algo", "train", "eval"), "sweep optuna": ("sweep", *TASK, "algo", "train", "eval"),
+    "sweep summarize": ("dir", "sweep"), "plot training": ("dir",),
+}
 
 
 def usage() -> str:
@@ -44,9 +64,39 @@ def usage() -> str:
         "commands:",
         *(f"  {name:<{width}}  {text}" for name, (_, _, text) in COMMANDS.items()),
         "",
-        "Each command is a Hydra app: `pamrun <command> --help` lists its config groups,",
-        "`pamrun <command> --cfg job` prints the composed config.",
+        "Each command is a Hydra app: `pamrun <command> --help` lists its config groups and",
+        "documents every key it uses; `pamrun <command> --cfg job` prints the composed config.",
     ]
+    return "\n".join(lines)
+
+
+def command_help(name: str) -> str:
+    """`pamrun <command> --help`: its config groups and options, and every key it uses with its doc."""
+    import yaml
+
+    from pamrun.config import Config
+    from pamrun.config.docs import describe
+
+    chosen = {}
+    for entry in yaml.safe_load((CONF_DIR / "config.yaml").read_text())["defaults"]:
+        if isinstance(entry, dict):
+            chosen.update({k: v for k, v in entry.items() if "/" not in k and not k.startswith("override")})
+    sections = HELP_SECTIONS.get(name, tuple(chosen))
+    lines = [f"pamrun {name}: {COMMANDS[name][2]}", "",
+             f"usage: pamrun {name} [group=option ...] [key=value ...] [--cfg job] [-m]", "",
+             "Config groups (group=option, * marks the default):"]
+    for group, default in chosen.items():
+        if group in sections:
+            options = sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
+            lines.append(f"  {group:<8} " + ", ".join(f"{o}*" if o == default else o for o in options))
+    if name.startswith("sweep") and name != "sweep summarize":
+        launchers = sorted(p.stem for p in (CONF_DIR / "hydra" / "launcher").glob("*.yaml"))
+        lines.append("  hydra/launcher " + ", ".join(f"{o}*" if o == "local" else o for o in launchers))
+    lines += ["", "Config keys (key = default  # what it is; override with key=value):"]
+    for key, value, doc in describe(Config):
+        if key.split(".")[0] in sections:
+            lines.append(f"  {key} = {value!r}" + (f"  # {doc}" if doc else ""))
+    lines += ["", f"Hydra's own flags: pamrun {name} --hydra-help"]
     return "\n".join(lines)
 
 
@@ -68,6 +118,9 @@ def main(argv: list[str] | None = None) -> None:
             print(usage(), file=sys.stderr)
             raise SystemExit(2)
         print(usage())
+        return
+    if "--help" in rest or "-h" in rest:
+        print(command_help(name))
         return
     run_hydra_app(name, rest)
 
@@ -123,6 +176,32 @@ def sweep_args(args: list[str]) -> list[str]:
     # Job folders are named by the swept overrides only (the rest is the same for all jobs).
     fixed = swept_keys(args)[1] + list(RUNTIME_KEYS)
     return [*args, f"hydra.job.config.override_dirname.exclude_keys=[{','.join(fixed)}]"]
+
+
+
+class ValidateConfig(Callback):
+    """Hydra callback (``conf/config.yaml``): validate values before Hydra creates the run directory."""
+
+    def on_run_start(self, config: DictConfig, **kwargs: Any) -> None:
+        _validate_or_exit(config)
+
+    def on_job_start(self, config: DictConfig, **kwargs: Any) -> None:
+        # Multirun jobs are composed inside the launcher; a bad one fails alone. A sweep job
+        # validates inside its task instead, so the failure is recorded and the others go on.
+        if OmegaConf.select(config, "hydra.job.name", default="") != "sweep":
+            _validate_or_exit(config)
+
+
+def _validate_or_exit(config: DictConfig) -> None:
+    try:
+        validate(config)
+        name = OmegaConf.select(config, "hydra.job.name", default="").replace("_", " ")
+        if name in COMMANDS:
+            check = getattr(importlib.import_module(COMMANDS[name][0]), "check_config", None)
+            if check is not None:
+                check(config)
+    except ConfigError as err:
+        raise SystemExit(f"pamrun: invalid configuration: {err}") from None
 
 
 if __name__ == "__main__":

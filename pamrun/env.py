@@ -21,25 +21,28 @@ affine bias, see ``MuscleDrive.apply``), so a stiff pair acts at every physics s
 Python per physics step.
 
 ## Observation space
-``Box(-inf, inf, (33 + n_actions,), float32)``: 43 values (antagonistic) or 53 (independent):
+``Box(-inf, inf, (33 + n_actions,), float32)``: 43 values (antagonistic) or 53 (independent).
+``env.observation_structure`` names each block as a slice (use it instead of indices):
 
-| index | meaning | unit |
-|---|---|---|
-| 0 | torso lateral position y | m |
-| 1 | torso height z | m |
-| 2, 3, 4 | torso roll, pitch, yaw | rad |
-| 5, 6, 7 | torso linear velocity vx, vy, vz (world frame) | m/s |
-| 8, 9, 10 | torso angular velocity (torso frame) | rad/s |
-| 11-20 | joint angles, JOINTS order | rad |
-| 21-30 | joint angular velocities, JOINTS order | rad/s |
-| 31, 32 | normal ground force under the right, left foot | robot weights (N / (m g)) |
-| 33-42 (33-52) | the previous action (10 or 20 values) | 1 |
+| index | ``observation_structure`` key | meaning | unit |
+|---|---|---|---|
+| 0 | ``torso_y`` | torso lateral position y | m |
+| 1 | ``torso_z`` | torso height z | m |
+| 2, 3, 4 | ``torso_rpy`` | torso roll, pitch, yaw | rad |
+| 5, 6, 7 | ``torso_velocity`` | torso linear velocity vx, vy, vz (world frame) | m/s |
+| 8, 9, 10 | ``torso_angular_velocity`` | torso angular velocity (torso frame) | rad/s |
+| 11-20 | ``joint_angle`` | joint angles, JOINTS order | rad |
+| 21-30 | ``joint_velocity`` | joint angular velocities, JOINTS order | rad/s |
+| 31, 32 | ``foot_force`` | normal ground force under the right, left foot | robot weights (N / (m g)) |
+| 33-42 (33-52) | ``previous_action`` | the previous action (10 or 20 values) | 1 |
 
 ## Reward (thesis Table 9.3, config group ``reward``)
 r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf, with Vx the
 torso's forward velocity, y its lateral deviation, z - z0 its height change since reset
 and a_prev the action applied in this step (the "previous action" of the next
-observation). Each term is in ``info["reward_terms"]``.
+observation). Each term is in ``info["reward_terms"]`` under the key of its weight
+(``kvx``: forward, ``ky``: lateral, ``kz``: height, ``kv``: effort, ``kt``: alive), so a
+term and the ``reward.<key>`` that scales it share one name.
 
 ## Episode end
 Truncation after Tf = 10 s (400 steps). Termination when the torso falls below
@@ -71,8 +74,23 @@ from pamrun.actuation import MuscleDrive, n_actions  # noqa: E402
 from pamrun.config import BodyConfig, EnvConfig, MuscleConfig, RewardConfig, to_object  # noqa: E402
 
 N_JOINTS = 10
-OBS_BASE = 33  # observations before the previous action (see the table above)
+# Observation blocks in order, with their sizes (the table above); the previous action follows.
+_OBS_BLOCKS = (("torso_y", 1), ("torso_z", 1), ("torso_rpy", 3), ("torso_velocity", 3), ("torso_angular_velocity", 3),
+               ("joint_angle", N_JOINTS), ("joint_velocity", N_JOINTS), ("foot_force", 2))
+OBS_BASE = sum(n for _, n in _OBS_BLOCKS)  # 33: observations before the previous action
 OBS_SIZE = OBS_BASE + N_JOINTS  # with the antagonistic command (the default and the thesis)
+
+
+def observation_structure(n_actions: int = N_JOINTS) -> dict[str, slice]:
+    """Each observation block's slice, for an env taking ``n_actions`` actions."""
+    out, start = {}, 0
+    for name, size in (*_OBS_BLOCKS, ("previous_action", n_actions)):
+        out[name] = slice(start, start + size)
+        start += size
+    return out
+
+
+REWARD_KEYS = tuple(RewardConfig.__dataclass_fields__)  # one reward term per weight, same key
 
 
 def space_sizes(muscle: MuscleConfig | dict | None = None) -> tuple[int, int]:
@@ -142,9 +160,7 @@ class PamWalkerEnv(gym.Env):
         self.drive = MuscleDrive(self.muscle_cfg, self.body_cfg)
 
         m = self.model
-        joint_ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name) for name in body_mod.JOINTS]
-        self._qpos_idx = np.array([m.jnt_qposadr[j] for j in joint_ids])
-        self._qvel_idx = np.array([m.jnt_dofadr[j] for j in joint_ids])
+        self._qpos_idx, self._qvel_idx = body_mod.joint_addresses(m)
         self._torso_id = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body_mod.TORSO)
         self._foot_sensor_adr = np.array(
             [m.sensor_adr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, s)] for s in body_mod.FOOT_SENSORS]
@@ -158,6 +174,7 @@ class PamWalkerEnv(gym.Env):
         self.n_actions = self.drive.n_actions
         self.action_space = gym.spaces.Box(-1.0, 1.0, (self.n_actions,), np.float32)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (OBS_BASE + self.n_actions,), np.float32)
+        self.observation_structure = observation_structure(self.n_actions)
         self._prev_action = np.zeros(self.n_actions)
         self._steps = 0
         self._x0 = 0.0
@@ -256,15 +273,14 @@ class PamWalkerEnv(gym.Env):
     def _reward(self, action: np.ndarray, physics_error: bool) -> tuple[float, dict[str, float]]:
         k, cfg = self.reward_cfg, self.env_cfg
         if physics_error:
-            terms = {"forward": 0.0, "lateral": 0.0, "height": 0.0, "effort": 0.0, "alive": 0.0}
-            return 0.0, terms
+            return 0.0, dict.fromkeys(REWARD_KEYS, 0.0)
         pos, _, lin_vel, _ = self._torso_state()
-        terms = {
-            "forward": k.kvx * float(lin_vel[0]),
-            "lateral": -k.ky * float(pos[1]) ** 2,
-            "height": -k.kz * (float(pos[2]) - self.z0) ** 2,
-            "effort": -k.kv * float(np.sum(action**2)),
-            "alive": k.kt * cfg.control_dt_s / cfg.episode_s,
+        terms = {  # keyed by the weight that scales each term (Table 9.3)
+            "kvx": k.kvx * float(lin_vel[0]),
+            "ky": -k.ky * float(pos[1]) ** 2,
+            "kz": -k.kz * (float(pos[2]) - self.z0) ** 2,
+            "kv": -k.kv * float(np.sum(action**2)),
+            "kt": k.kt * cfg.control_dt_s / cfg.episode_s,
         }
         return float(sum(terms.values())), terms
 

@@ -33,9 +33,8 @@ import numpy as np
 from pamrun.checkpoints import (ENV_SECTIONS, Agent, CheckpointError, check_fits, find_checkpoints, load_agent,
                                 unique_labels)
 
-# Aggregates an agent can be ranked by (``eval.rank_by``); larger is better unless prefixed '-'.
-RANK_METRICS = ("walk_pass_rate", "distance_mean", "distance_min", "return_mean", "duration_mean", "speed_mean",
-                "fall_rate", "max_abs_y_mean", "max_abs_y_max", "pressure_change_mean")
+from pamrun.config import RANK_METRICS  # aggregates an agent can be ranked by (``eval.rank_by``)
+
 LEADERBOARD_FIELDS = ("rank", "agent", "walk_test", "walk_pass_rate", "distance_mean", "distance_std", "distance_min",
                       "return_mean", "return_std", "duration_mean", "duration_std", "fall_rate", "max_abs_y_mean",
                       "max_abs_y_max", "speed_mean", "speed_std", "pressure_change_mean", "pressure_change_std",
@@ -81,6 +80,7 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
     regulator, drive = env.drive.pairs.regulator, env.drive
     command = regulator.target_pressure_kpa(drive.voltage_v)
     steps = {k: [] for k in ("x_m", "y_m", "z_m", "joint_angle_rad", "pressure_kpa", "action")}
+    angles = env.observation_structure["joint_angle"]
     total, change, max_y, fell = 0.0, 0.0, 0.0, False
     if frame_sink:
         frame_sink(env.render())
@@ -93,7 +93,7 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
         command = new_command
         max_y = max(max_y, abs(float(info["y"])))
         for key, value in (("x_m", info["x"]), ("y_m", info["y"]), ("z_m", info["z"]),
-                           ("joint_angle_rad", obs[11:21]), ("pressure_kpa", info["pressure_kpa"].ravel()),
+                           ("joint_angle_rad", obs[angles]), ("pressure_kpa", info["pressure_kpa"].ravel()),
                            ("action", action)):
             steps[key].append(value)
         if frame_sink:
@@ -296,6 +296,16 @@ def record_video(agent: Agent, kwargs: dict, seed: int, width: int, height: int,
 # --------------------------------------------------------------------------- the command
 
 
+def check_config(config) -> None:
+    """``ckpt`` must name at least one checkpoint file (run by pamrun.cli before any directory exists)."""
+    from pamrun.config import ConfigError
+
+    try:
+        find_checkpoints(config.ckpt, config.eval.include_last)
+    except CheckpointError as err:
+        raise ConfigError("ckpt", str(err)) from None
+
+
 def load_agents(spec: str, cfg) -> tuple[list[Agent], list[dict], list[dict]]:
     """Agents named by ``spec`` with their env kwargs, and one error row per unusable file."""
     from omegaconf.errors import OmegaConfBaseException
@@ -336,7 +346,7 @@ def run_evaluation(cfg, spec: str, out: Path) -> dict:
 
     from pamrun import plots
     from pamrun.checkpoints import save_agent_copy
-    from pamrun.config import usable_cores
+    from pamrun.runtime import usable_cores
     from pamrun.train import Progress
 
     console = Console() if Console().is_terminal else Console(width=160)  # logs keep whole rows

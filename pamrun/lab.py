@@ -203,16 +203,14 @@ def openloop_movement(cfg: Config, movement: str, duration_s: float = 3.0, step_
     import mujoco
 
     from pamrun.actuation import MuscleDrive, joint_limits_rad
-    from pamrun.body import JOINTS, build_fixed_model
+    from pamrun.body import JOINTS, build_fixed_model, joint_addresses
 
     joint, side = MOVEMENTS[movement]
     j = JOINTS.index(f"left_{joint}")
     limits = joint_limits_rad(cfg.body)[j]
     model = build_fixed_model(cfg.body, timestep_s=cfg.env.physics_dt_s)
     data = mujoco.MjData(model)
-    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in JOINTS]
-    qi = np.array([model.jnt_qposadr[i] for i in ids])
-    vi = np.array([model.jnt_dofadr[i] for i in ids])
+    qi, vi = joint_addresses(model)
     drive = MuscleDrive(cfg.muscle, cfg.body)
     drive.reset()
     mujoco.mj_forward(model, data)

@@ -16,7 +16,7 @@ A Festo DMSP-20-260N fluidic muscle is modelled, as in the thesis, by three part
 Everything works on arrays of shape (n_pairs, 2) so the 20 muscles of the robot step at
 once. Force laws and dynamics are looked up by name in :data:`FORCE_LAWS` and
 :data:`DYNAMICS`, so another law (a geometric model, inflation/deflation hysteresis) is
-one class and one registry entry away.
+one class, one registry entry and its name in ``pamrun.config.robot.FORCE_LAW_NAMES`` away.
 """
 
 from __future__ import annotations

@@ -271,8 +271,9 @@ def capacity(json_path: Path, png_path: Path) -> Path:
         angle = np.asarray(r["angle_deg"])
         for label, style in (("band", "-"), ("full", "--")):
             env = r["envelope"][label]
-            ax.plot(angle, env["plus_nm"], "tab:blue", ls=style, lw=1.4, label=f"{label} +" if label == "band" else None)
-            ax.plot(angle, env["minus_nm"], "tab:red", ls=style, lw=1.4, label=f"{label} -" if label == "band" else None)
+            legend = label == "band"
+            ax.plot(angle, env["plus_nm"], "tab:blue", ls=style, lw=1.4, label="band +" if legend else None)
+            ax.plot(angle, env["minus_nm"], "tab:red", ls=style, lw=1.4, label="band -" if legend else None)
         lo, hi = r["walking_range_deg"]
         ax.axvspan(lo, hi, color="0.9", zorder=0, label="walking range")
         d = r["walking_demand_nm"]
@@ -283,8 +284,8 @@ def capacity(json_path: Path, png_path: Path) -> Path:
             ax.hlines(sign * r["lean_demand_nm"], angle[0], angle[-1], colors="tab:green", lw=1,
                       label=f"{data['lean_deg']:.0f} deg lean" if sign > 0 else None)
         ax.axhline(0, color="0.5", lw=0.5)
-        ax.set_title(f"{name}: margin {r['walking_margin']:.2f}\n{r['muscles_per_direction']} x {data['muscle']['size']}, "
-                     f"r {r['radius_mm']:.0f} mm", fontsize=9)
+        ax.set_title(f"{name}: margin {r['walking_margin']:.2f}\n{r['muscles_per_direction']} x "
+                     f"{data['muscle']['size']}, r {r['radius_mm']:.0f} mm", fontsize=9)
         ax.set_xlabel("joint angle [deg]")
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("torque [N m] (dashed: full pressure)")

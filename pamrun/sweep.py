@@ -35,6 +35,7 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
 from pamrun.config import JOB_METRICS
+from pamrun.runtime import usable_cores  # importing it registers the resolvers of conf/sweep.yaml
 
 JOB_FILE = "job.json"
 FINISHED_TRAINING = ("max_frames", "max_episodes", "max_minutes", "target_avg_reward")
@@ -144,7 +145,6 @@ def run_job(dcfg: DictConfig, out: Path, hc) -> dict:
 def job_cores(hc) -> int:
     """Cores one job may use: its share of this machine (joblib), its Ray reservation, or
     its allocation (SLURM: the CPU affinity)."""
-    from pamrun.config import usable_cores
 
     ray_cpus = OmegaConf.select(hc, "launcher.ray.remote.num_cpus", default=None)
     if ray_cpus:

@@ -30,7 +30,8 @@ from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
 from pamrun.checkpoints import agent_record
-from pamrun.config import Config, to_object, upgrade_saved_config, usable_cores
+from pamrun.config import Config, to_object, upgrade_saved_config
+from pamrun.runtime import usable_cores
 
 CSV_FIELDS = ("episode", "frames", "reward", "avg_reward", "q0", "length", "distance_m", "wall_time_s")
 

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 
 import pytest
 from hydra import compose, initialize_config_dir
 
+from pamrun import runtime  # noqa: F401  (registers the resolvers conf/sweep.yaml uses, as pamrun.cli does)
 from pamrun.config import CONF_DIR, Config, register_configs, to_object
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -28,3 +31,10 @@ def cfg() -> Config:
 def thesis_muscle():
     """The thesis' muscle model (``muscle=thesis``) as a validated MuscleConfig."""
     return to_object(compose_config("muscle=thesis")).muscle
+
+
+def run_pamrun(*args: str, cwd=None) -> subprocess.CompletedProcess:
+    """The ``pamrun`` command line in a fresh interpreter, output captured."""
+    return subprocess.run(
+        [sys.executable, "-m", "pamrun.cli", *args], capture_output=True, text=True, cwd=cwd, timeout=300
+    )

@@ -70,13 +70,23 @@ def test_noise_schedule_follows_matlab_variance_decay():
 
 
 def test_exploration_modules_take_the_scale():
+    """The scale written by set_noise_scale is the spread of the actions the policy explores with."""
+    from tensordict import TensorDict
+
     for name in ("ddpg", "td3"):
         cfg = AlgoConfig(name=name)
-        explore = agents.make_exploration(cfg, agents.make_actor(cfg, 43, 10), SPEC)
-        agents.set_noise_scale(explore, 0.25)
-        noise = explore.module[-1]
-        value = noise.eps if name == "ddpg" else noise.sigma
-        assert float(value) == pytest.approx(0.25)
+        actor = agents.make_actor(cfg, 43, 10)
+        explore = agents.make_exploration(cfg, actor, SPEC)
+        spread = {}
+        for scale in (0.1, 0.2):
+            agents.set_noise_scale(explore, scale)
+            td = TensorDict({"observation": torch.zeros(4000, 43), "is_init": torch.ones(4000, 1, dtype=torch.bool)},
+                            [4000])
+            with torch.no_grad():
+                deviation = explore(td.clone())["action"] - actor(td.clone())["action"]
+            spread[scale] = float(deviation.std())
+        assert spread[0.1] > 0.01, name
+        assert spread[0.2] / spread[0.1] == pytest.approx(2.0, rel=0.1), name
 
 
 def test_bad_algo_values():

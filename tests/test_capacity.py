@@ -13,8 +13,7 @@ from pamrun.actuation import MuscleDrive
 from pamrun.capacity import REQUIRED_MARGIN, analyse
 from pamrun.config import BodyConfig, ConfigError, JointCounts, MuscleConfig, upgrade_saved_config
 from pamrun.env import PamWalkerEnv, space_sizes
-from tests.conftest import thesis_muscle
-from tests.test_config import run_pamrun
+from tests.conftest import run_pamrun, thesis_muscle
 
 
 @pytest.fixture(scope="module")

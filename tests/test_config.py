@@ -2,14 +2,11 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
 import pytest
 from hydra.errors import ConfigCompositionException
 
-from pamrun.config import BodyConfig, ConfigError, MuscleConfig, to_object
-from tests.conftest import compose_config
+from pamrun.config import AlgoConfig, BodyConfig, ConfigError, MuscleConfig, TrainConfig, to_object
+from tests.conftest import compose_config, run_pamrun
 
 
 def test_default_config_is_the_sized_robot_and_muscle_thesis_is_the_thesis(cfg):
@@ -67,11 +64,6 @@ def test_dataclasses_validate_without_hydra():
         BodyConfig(height_m=-1)
 
 
-def run_pamrun(*args: str, cwd=None) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "pamrun.cli", *args], capture_output=True, text=True, cwd=cwd, timeout=300
-    )
-
 
 def test_cli_bad_value_fails_before_the_run_dir(tmp_path):
     run_dir = tmp_path / "run"
@@ -101,5 +93,53 @@ def test_cli_prints_config_and_help():
     assert "tau_s: 0.2" in proc.stdout
     proc = run_pamrun("muscle", "step", "--help")
     assert proc.returncode == 0
-    assert "muscle: sized" in proc.stdout and "body: thesis" in proc.stdout
-    assert "schema" not in proc.stdout.split("== Config ==")[0]
+    assert "  muscle   sized*, thesis" in proc.stdout and "pair.dt_s = 0.001  # integration step" in proc.stdout
+    assert "algo." not in proc.stdout  # only what the command uses
+    proc = run_pamrun("train", "--help")
+    keys = [line.split(" = ")[0].strip() for line in proc.stdout.splitlines() if " = " in line]
+    assert {"seed", "muscle.size", "algo.actor_lr", "train.max_minutes", "resume"} <= set(keys)
+    assert all("  # " in line for line in proc.stdout.splitlines() if " = " in line)  # every key has its doc
+
+
+def _repeated_defaults(data: dict, defaults: dict, prefix: str = "") -> list[str]:
+    """Keys of a preset whose values equal the dataclass defaults (they belong in the dataclass only)."""
+    out = []
+    for key, value in data.items():
+        if isinstance(value, dict) and isinstance(defaults.get(key), dict):
+            out += _repeated_defaults(value, defaults[key], f"{prefix}{key}.")
+        elif key in defaults and value == defaults[key]:
+            out.append(prefix + key)
+    return out
+
+
+def test_presets_hold_only_what_they_change():
+    """One source of defaults: the dataclasses. A YAML preset that repeats a default is a second copy."""
+    from dataclasses import asdict
+
+    import yaml
+
+    from pamrun.config import CONF_DIR, Config
+
+    defaults = asdict(Config())
+    checked = 0
+    for group in ("muscle", "body", "reward", "env", "algo", "train", "eval", "sweep"):
+        for path in sorted((CONF_DIR / group).glob("*.yaml")):
+            data = yaml.safe_load(path.read_text()) or {}
+            data.pop("defaults", None)
+            assert _repeated_defaults(data, defaults[group]) == [], path.name
+            checked += 1
+    assert checked >= 12
+    assert to_object(compose_config()).algo == AlgoConfig()  # algo=ddpg runs the dataclass' defaults
+    assert to_object(compose_config()).train == TrainConfig() and to_object(compose_config()).muscle == MuscleConfig()
+
+
+def test_every_config_field_has_a_doc():
+    from pamrun.config import Config
+    from pamrun.config.docs import describe
+
+    rows = describe(Config)
+    assert len(rows) > 140
+    assert [key for key, _, doc in rows if not doc] == []
+    docs = dict((key, doc) for key, _, doc in rows)
+    assert docs["train.max_minutes"] == "wall-clock limit; 0 = none"  # the trailing comment in learning.py
+    assert docs["body.knee_limits_deg"].startswith("Left-leg limits")  # the comment heading a run of fields

@@ -14,7 +14,7 @@ from gymnasium.utils.env_checker import check_env
 
 import pamrun  # noqa: F401  (registers the env)
 from pamrun.body import JOINTS
-from pamrun.config import ConfigError
+from pamrun.config import ConfigError, RewardConfig
 from pamrun.env import PamWalkerEnv, quat_to_euler
 from tests.conftest import thesis_muscle
 
@@ -66,6 +66,11 @@ def test_observation_layout_matches_state(env):
     # Joint order is the documented one.
     names = [u.model.joint(int(j)).name for j in u.model.dof_jntid[u._qvel_idx]]
     assert names == list(JOINTS)
+    # The named blocks are exactly these slices, in order, covering the whole observation.
+    structure = u.observation_structure
+    assert structure["joint_angle"] == slice(11, 21) and structure["previous_action"] == slice(33, 43)
+    assert [s.start for s in structure.values()][1:] == [s.stop for s in structure.values()][:-1]
+    assert list(structure.values())[-1].stop == obs.shape[0]
 
 
 def test_standing_feet_carry_the_weight(env):
@@ -86,15 +91,16 @@ def test_reward_terms_match_hand_computation(env):
     hand = 1.0 * vx - 4.0 * y**2 - 60.0 * (z - u.z0) ** 2 - 0.02 * np.sum(action.astype(float) ** 2) + 25 * 0.025 / 10
     assert reward == pytest.approx(hand, rel=1e-6, abs=1e-9)
     assert sum(info["reward_terms"].values()) == pytest.approx(reward)
-    assert info["reward_terms"]["alive"] == pytest.approx(0.0625)
+    assert info["reward_terms"]["kt"] == pytest.approx(0.0625)
+    assert set(info["reward_terms"]) == set(RewardConfig.__dataclass_fields__)  # a term per weight, same key
 
 
 def test_reward_weights_are_keyword_arguments():
     e = gym.make("pamrun/PamWalker-v0", reward={"kv": 1.0, "kt": 0.0})
     e.reset(seed=0)
     _, _, _, _, info = e.step(np.ones(10, dtype=np.float32))
-    assert info["reward_terms"]["effort"] == pytest.approx(-10.0)
-    assert info["reward_terms"]["alive"] == 0.0
+    assert info["reward_terms"]["kv"] == pytest.approx(-10.0)
+    assert info["reward_terms"]["kt"] == 0.0
     e.close()
 
 

@@ -17,8 +17,7 @@ from pamrun.config import ConfigError, to_object
 from pamrun.env import N_JOINTS, OBS_SIZE, PamWalkerEnv
 from pamrun.evaluate import (aggregate, env_kwargs, evaluate_agents, load_agents, rank, run_episode,
                              walk_passed)
-from tests.conftest import compose_config
-from tests.test_config import run_pamrun
+from tests.conftest import compose_config, run_pamrun
 
 
 def episode(duration=10.0, fell=False, y=0.1, distance=5.0, ret=100.0):

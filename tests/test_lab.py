@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import json
 
-from pamrun.config import CONF_DIR
-from tests.test_config import run_pamrun
+from pamrun.config import CONF_DIR, SPRING_FILE
+from tests.conftest import run_pamrun
 
 
 def test_muscle_step_writes_json_and_png(tmp_path):
@@ -45,13 +45,16 @@ def test_muscle_curves_writes_figures(tmp_path):
 
 def test_muscle_calibrate_writes_yaml_without_touching_conf(tmp_path):
     run_dir = tmp_path / "cal"
+    before, mtime = SPRING_FILE.read_text(), SPRING_FILE.stat().st_mtime_ns
     proc = run_pamrun(
         "muscle", "calibrate", "muscle=thesis", "pair.calibrate_write_conf=false", "pair.duration_s=1.5",
-        "pair.dt_s=0.002", f"hydra.run.dir={run_dir}",
+        "pair.dt_s=0.002", "muscle.spring.stiffness_n_per_m=[900,900,900,900,900,900,900,900]",
+        f"hydra.run.dir={run_dir}",
     )
     assert proc.returncode == 0, proc.stderr
     text = (run_dir / "spring_table.yaml").read_text()
     assert "stiffness_n_per_m" in text and "Fitted bands" in text
+    assert SPRING_FILE.read_text() == before and SPRING_FILE.stat().st_mtime_ns == mtime
 
 
 def test_step_on_a_6_bar_muscle_says_so_and_calibration_refuses_it(tmp_path):

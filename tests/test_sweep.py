@@ -17,7 +17,7 @@ import torch
 
 from pamrun.config import CONF_DIR, register_configs
 from pamrun.sweep import collect_jobs, compare, group_key, mean_ci, sweep_dir_for, swept_keys
-from tests.test_config import run_pamrun
+from tests.conftest import run_pamrun
 
 TINY = ["train=smoke", "train.max_frames=400", "train.init_random_frames=200", "train.updates_per_frame=0.25",
         "train.save_threshold=-80", "eval.episodes=2", "eval.episode_s=2", "eval.walk_duration_s=2"]
@@ -98,9 +98,9 @@ def test_smoke_sweep_trains_evaluates_and_summarises(smoke_sweep):
     assert set(rows) == {"reward.kz=30", "reward.kz=60"}
     for setting, row in rows.items():
         values = [j["metrics"]["final_avg_reward"] for j in jobs if j["overrides"][0] == setting]
-        mean, half = mean_ci(values)
-        assert float(row["final_avg_reward"]) == pytest.approx(mean)
-        assert float(row["final_avg_reward_ci95"]) == pytest.approx(half)
+        # Student's t interval of two values, written out: t(0.975, 1) = 12.706, s = |a - b| / sqrt(2).
+        assert float(row["final_avg_reward"]) == pytest.approx(sum(values) / 2)
+        assert float(row["final_avg_reward_ci95"]) == pytest.approx(12.7062 * abs(values[0] - values[1]) / 2, rel=1e-4)
         assert row["done"] == "2" and row["failed"] == "0" and row["seeds"] == "0 1"
     md = (sweep_dir / "summary.md").read_text()
     assert "| reward.kz=30 | 2/2 |" in md and "Welch's t-test" in md

@@ -8,7 +8,7 @@ import json
 import pytest
 import torch
 
-from tests.test_config import run_pamrun
+from tests.conftest import run_pamrun
 
 TINY = ["train=smoke", "train.max_frames=600", "train.init_random_frames=200", "train.updates_per_frame=0.25",
         "train.checkpoint_every_frames=200", "seed=1"]

@@ -5,7 +5,8 @@ the thesis values, each with the section it comes from (``../shared/THESIS.md``)
 files in ``conf/`` select and override them. Hydra rejects unknown keys and wrong types
 while composing; :func:`validate` then checks values (a negative height, tau <= 0, a
 pressure table that is not monotone) and raises :class:`ConfigError` naming the full
-key, before any run directory is created (see :class:`ValidateConfig`).
+key, before any run directory is created (``pamrun.cli.ValidateConfig`` runs it as a Hydra
+callback). This package is the bottom layer: it imports no other pamrun module.
 
 The schemas live by subject: :mod:`pamrun.config.robot` (muscle, body),
 :mod:`pamrun.config.task` (reward, env), :mod:`pamrun.config.learning` (algo, train) and
@@ -19,21 +20,21 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from hydra.core.config_store import ConfigStore
-from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
 from pamrun.config.checks import CONF_DIR, ConfigError, _require
-from pamrun.config.experiments import (JOB_METRICS, EvalConfig, OptunaConfig, PairConfig, StepExperiment,
+from pamrun.config.experiments import (JOB_METRICS, RANK_METRICS, EvalConfig, OptunaConfig, PairConfig, StepExperiment,
                                        SweepConfig)
 from pamrun.config.learning import AlgoConfig, TrainConfig
-from pamrun.config.robot import (SPRING_FILE, BodyConfig, JointAngles, JointCounts, JointRadii, MuscleConfig, RegulatorConfig,
-                                 SpringConfig, check_muscle_stretch)
+from pamrun.config.robot import (DYNAMICS_NAMES, FORCE_LAW_NAMES, SPRING_FILE, BodyConfig, JointAngles, JointCounts,
+                                 JointRadii, MuscleConfig, RegulatorConfig, SpringConfig, check_muscle_stretch)
 from pamrun.config.task import EnvConfig, RewardConfig
 
-__all__ = ["CONF_DIR", "SPRING_FILE", "JOB_METRICS", "ConfigError", "Config", "RegulatorConfig", "SpringConfig",
-           "MuscleConfig", "JointAngles", "JointCounts", "JointRadii", "check_muscle_stretch", "BodyConfig", "RewardConfig", "EnvConfig", "AlgoConfig", "TrainConfig", "EvalConfig",
-           "OptunaConfig", "SweepConfig", "StepExperiment", "PairConfig", "register_configs", "validate",
-           "to_object", "preset", "ValidateConfig", "check_command", "upgrade_saved_config", "usable_cores", "parallel_jobs"]
+__all__ = ["CONF_DIR", "SPRING_FILE", "JOB_METRICS", "RANK_METRICS", "FORCE_LAW_NAMES", "DYNAMICS_NAMES", "ConfigError",
+           "Config", "RegulatorConfig", "SpringConfig", "MuscleConfig", "JointAngles", "JointCounts", "JointRadii",
+           "check_muscle_stretch", "BodyConfig", "RewardConfig", "EnvConfig", "AlgoConfig", "TrainConfig", "EvalConfig",
+           "OptunaConfig", "SweepConfig", "StepExperiment", "PairConfig", "register_configs", "validate", "to_object",
+           "preset", "upgrade_saved_config"]
 
 
 # --------------------------------------------------------------------------- root
@@ -43,7 +44,7 @@ __all__ = ["CONF_DIR", "SPRING_FILE", "JOB_METRICS", "ConfigError", "Config", "R
 class Config:
     """The composed configuration of every pamrun command."""
 
-    seed: int = 0
+    seed: int = 0  # seed of everything random: torch, numpy, the envs, the collectors
     muscle: MuscleConfig = field(default_factory=MuscleConfig)
     body: BodyConfig = field(default_factory=BodyConfig)
     reward: RewardConfig = field(default_factory=RewardConfig)
@@ -121,26 +122,6 @@ def register_configs() -> None:
     ConfigStore.instance().store(name="pamrun_schema", node=Config)
 
 
-def parallel_jobs(jobs: int, workers_per_job: int) -> int:
-    """Sweep jobs to run side by side: ``jobs``, or (0) the cores each job's workers leave."""
-    return int(jobs) if int(jobs) > 0 else max(1, usable_cores() // max(1, int(workers_per_job)))
-
-
-def usable_cores() -> int:
-    """Cores this process may run on (a SLURM allocation or container limit, not the whole node)."""
-    import os
-
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
-# Used by conf/sweep.yaml (registered on import: sweep jobs compose their config in worker processes).
-OmegaConf.register_new_resolver("pamrun_jobs", parallel_jobs, replace=True)
-OmegaConf.register_new_resolver("pamrun_job_dir", lambda name: name or "default", replace=True)
-
-
 def validate(cfg: DictConfig, path: str = "") -> None:
     """Check every value of a composed config; raise ConfigError with the full key.
 
@@ -172,39 +153,3 @@ def to_object(cfg: DictConfig) -> Any:
     """Validated dataclass instance of a composed config (or of one of its sections)."""
     validate(cfg)
     return OmegaConf.to_object(cfg)
-
-
-class ValidateConfig(Callback):
-    """Hydra callback: validate values before Hydra creates the run directory."""
-
-    def on_run_start(self, config: DictConfig, **kwargs: Any) -> None:
-        _validate_or_exit(config)
-
-    def on_job_start(self, config: DictConfig, **kwargs: Any) -> None:
-        # Multirun jobs are composed inside the launcher; a bad one fails alone. A sweep job
-        # validates inside its task instead, so the failure is recorded and the others go on.
-        if OmegaConf.select(config, "hydra.job.name", default="") != "sweep":
-            _validate_or_exit(config)
-
-
-def _validate_or_exit(config: DictConfig) -> None:
-    try:
-        validate(config)
-        check_command(config)
-    except ConfigError as err:
-        raise SystemExit(f"pamrun: invalid configuration: {err}") from None
-
-
-def check_command(config: DictConfig) -> None:
-    """What one command needs beyond valid values, checked before its directory exists.
-
-    ``pamrun eval``: ``ckpt`` must name at least one checkpoint file.
-    """
-    job = OmegaConf.select(config, "hydra.job.name", default="")
-    if job == "eval":
-        from pamrun.checkpoints import CheckpointError, find_checkpoints
-
-        try:
-            find_checkpoints(config.ckpt, config.eval.include_last)
-        except CheckpointError as err:
-            raise ConfigError("ckpt", str(err)) from None

@@ -8,6 +8,12 @@ from dataclasses import dataclass, field
 from pamrun.config.checks import _non_negative, _positive, _require
 
 
+# Aggregates an agent can be ranked by (``eval.rank_by``; pamrun/evaluate.py computes them);
+# larger is better unless prefixed '-'.
+RANK_METRICS = ("walk_pass_rate", "distance_mean", "distance_min", "return_mean", "duration_mean", "speed_mean",
+                "fall_rate", "max_abs_y_mean", "max_abs_y_max", "pressure_change_mean")
+
+
 @dataclass
 class EvalConfig:
     """``pamrun eval``: how saved agents are tested and ranked (thesis §10.3).
@@ -20,15 +26,15 @@ class EvalConfig:
     ``use_agent_env`` is false; then the command line's groups apply.
     """
 
-    episodes: int = 10
+    episodes: int = 10  # deterministic episodes per agent
     workers: int = 0  # evaluation processes; 0 = one per CPU core
-    seed: int = 0
-    reset_noise_rad: float = 0.01
-    reset_velocity_noise: float = 0.0
+    seed: int = 0  # episode k starts from seed + k, the same for every agent
+    reset_noise_rad: float = 0.01  # uniform start-pose noise on the joint angles (0 = the thesis' nominal pose)
+    reset_velocity_noise: float = 0.0  # uniform start noise on the joint velocities [rad/s]
     episode_s: float = 10.0  # Tf (§9)
     # Walk test (§10.3): walk walk_duration_s without falling, never leaving |y| <= walk_lateral_m.
     walk_duration_s: float = 10.0
-    walk_lateral_m: float = 0.5
+    walk_lateral_m: float = 0.5  # ... never leaving |y| <= this (thesis Fig. 10.25)
     # Leaderboard order: aggregate names, best first; a leading '-' ranks that one ascending.
     rank_by: list[str] = field(default_factory=lambda: ["walk_pass_rate", "distance_mean"])
     include_last: bool = True  # a run directory's final agent (checkpoints/last.pt) competes too
@@ -40,8 +46,6 @@ class EvalConfig:
     video_height: int = 480
 
     def __post_init__(self) -> None:
-        from pamrun.evaluate import RANK_METRICS
-
         for name in ("episodes", "top_k"):
             _require(getattr(self, name) >= 1, name, f"must be >= 1, got {getattr(self, name)}")
         _require(self.workers >= 0, "workers", f"must be >= 0 (0 = one per core), got {self.workers}")
@@ -74,10 +78,10 @@ class OptunaConfig:
     ``study.db`` (SQLite) in the study directory, so the same command resumes it.
     """
 
-    trials: int = 10
-    seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
-    params: dict[str, str] = field(default_factory=dict)
-    sampler_seed: int = 0
+    trials: int = 10  # trials to run (raise it to run more in the same study)
+    seeds: list[int] = field(default_factory=lambda: [0, 1, 2])  # seeds each trial is averaged over
+    params: dict[str, str] = field(default_factory=dict)  # key -> float:LO:HI, log:LO:HI, int:LO:HI or choice:A,B
+    sampler_seed: int = 0  # seed of Optuna's TPE sampler
 
     def __post_init__(self) -> None:
         _require(self.trials >= 1, "trials", f"must be >= 1, got {self.trials}")
@@ -119,10 +123,10 @@ class SweepConfig:
 class StepExperiment:
     """A pressure step on one antagonistic pair and the thesis' final contractions (§10.1)."""
 
-    label: str = ""
-    pressure1_kpa: float = 276.4
-    pressure2_kpa: float = 76.4
-    thesis_final_pct: list[float] = field(default_factory=lambda: [20.22, 3.44])
+    label: str = ""  # name in tables and figures
+    pressure1_kpa: float = 276.4  # muscle 1 after the step [kPa]
+    pressure2_kpa: float = 76.4  # muscle 2 after the step [kPa]
+    thesis_final_pct: list[float] = field(default_factory=lambda: [20.22, 3.44])  # the thesis' final contractions [%]
 
     def __post_init__(self) -> None:
         _non_negative(self, "pressure1_kpa", "pressure2_kpa")
@@ -135,9 +139,9 @@ class PairConfig:
 
     initial_pressure_kpa: float = 176.4  # 1.764 bar (§10.1)
     initial_contraction_pct: float = 14.06  # §10.1
-    step_time_s: float = 0.5
-    duration_s: float = 4.0
-    dt_s: float = 0.001
+    step_time_s: float = 0.5  # when the pressures step [s]
+    duration_s: float = 4.0  # length of each experiment [s]
+    dt_s: float = 0.001  # integration step of the pair [s]
     tolerance_pct: float = 0.5  # acceptance: every final contraction within 0.5 points
     experiments: dict[str, StepExperiment] = field(
         default_factory=lambda: {

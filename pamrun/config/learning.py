@@ -13,27 +13,27 @@ from pamrun.config.checks import _non_negative, _positive, _require
 class AlgoConfig:
     """DDPG (the thesis, Table 9.4) or TD3 (its proposed next step, §13)."""
 
-    name: str = "ddpg"
+    name: str = "ddpg"  # ddpg (the thesis) or td3
     gamma: float = 0.99  # discount (Table 9.4)
     batch_size: int = 128  # Table 9.4
     target_smoothing: float = 1e-3  # soft target update tau (Table 9.4)
     # The thesis prints actor 1e-3 / critic 1e-4, the reverse of the MathWorks example it
     # adapted (actor 1e-4, critic 1e-3): we keep the thesis' values (THESIS.md §7).
-    actor_lr: float = 1e-3
-    critic_lr: float = 1e-4
+    actor_lr: float = 1e-3  # actor learning rate (Table 9.4)
+    critic_lr: float = 1e-4  # critic learning rate (Table 9.4)
     hidden_sizes: list[int] = field(default_factory=lambda: [400, 300])  # Tables 9.1, 9.2
-    output_init_scale: float = 3e-3
-    loss_function: str = "l2"
+    output_init_scale: float = 3e-3  # uniform init range of the last layers (DDPG paper)
+    loss_function: str = "l2"  # critic loss: l1, l2 or smooth_l1
     # Exploration: variance 0.5 decaying by 1e-5 per step (Table 9.4).
-    noise_variance: float = 0.5
-    noise_decay: float = 1e-5
-    noise_variance_min: float = 0.01
+    noise_variance: float = 0.5  # exploration noise scale at the start (OU variance, Table 9.4)
+    noise_decay: float = 1e-5  # noise scale decay per step (Table 9.4)
+    noise_variance_min: float = 0.01  # floor of the decaying noise scale
     ou_theta: float = 0.15  # OU mean attraction (not in the thesis; TorchRL's default)
     ou_dt_s: float = 0.025  # OU time step = the control step Ts
     # TD3 only (Fujimoto et al. 2018 defaults)
-    policy_noise: float = 0.2
-    noise_clip: float = 0.5
-    actor_update_every: int = 2  # delayed actor updates (1 for DDPG)
+    policy_noise: float = 0.2  # TD3 target policy smoothing noise
+    noise_clip: float = 0.5  # TD3 clip of the target policy noise
+    actor_update_every: int = 1  # actor update every n critic updates (DDPG 1; TD3's delay: 2, algo=td3)
     grad_clip: float = 1.0  # gradient threshold of the MathWorks example
 
     def __post_init__(self) -> None:
@@ -55,7 +55,7 @@ class TrainConfig:
     """Budget, stop criteria, saving and parallelism of ``pamrun train`` (thesis §9.5, Table 9.4)."""
 
     max_episodes: int = 5000  # Table 9.4
-    max_frames: int = 2_000_000
+    max_frames: int = 2_000_000  # stop after this many env steps
     max_minutes: float = 0.0  # wall-clock limit; 0 = none
     target_avg_reward: float = 0.0  # stop when the windowed average reaches it; 0 = off
     avg_window: int = 100  # episodes in the average (MATLAB's ScoreAveragingWindowLength)
@@ -63,11 +63,11 @@ class TrainConfig:
     keep_saved: int = 10  # keep the best this many threshold saves
     workers: int = 1  # collector processes (the thesis used 8)
     threads: int = 0  # torch threads of the learner; 0 = the cores the collectors leave free
-    frames_per_batch: int = 200
+    frames_per_batch: int = 200  # env steps collected between learner phases
     init_random_frames: int = 2000  # uniform random actions before learning starts
-    updates_per_frame: float = 1.0
+    updates_per_frame: float = 1.0  # gradient updates per collected env step
     buffer_size: int = 1_000_000  # the MathWorks example's ExperienceBufferLength
-    checkpoint_every_frames: int = 20_000
+    checkpoint_every_frames: int = 20_000  # write checkpoints/last.pt (and the buffer) this often
 
     def __post_init__(self) -> None:
         for name in ("max_episodes", "max_frames", "avg_window", "keep_saved", "workers", "frames_per_batch",

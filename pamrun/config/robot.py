@@ -25,9 +25,9 @@ class RegulatorConfig:
     take the fast end, a first-order lag of 50 ms (``lag_s``), for the default robot.
     """
 
-    gain_kpa_per_v: float = 100.0
-    min_voltage_v: float = 0.0
-    max_voltage_v: float = 10.0
+    gain_kpa_per_v: float = 100.0  # pressure per volt: 1 bar/V, the thesis' "linear" (§9.5)
+    min_voltage_v: float = 0.0  # lowest command voltage (VPPM input 0-10 V)
+    max_voltage_v: float = 10.0  # highest command voltage
     min_pressure_kpa: float = 10.0  # 0.1 bar
     max_pressure_kpa: float = 1000.0  # 10 bar
     lag_s: float = 0.05  # first-order time constant [s]; 0 = ideal (the thesis)
@@ -72,9 +72,9 @@ class SpringConfig:
     tables (only ``none`` so far: one table for both, as in the thesis).
     """
 
-    band_edges_kpa: list[float] = field(default_factory=lambda: _calibrated_spring()["band_edges_kpa"])
-    stiffness_n_per_m: list[float] = field(default_factory=lambda: _calibrated_spring()["stiffness_n_per_m"])
-    hysteresis: str = "none"
+    band_edges_kpa: list[float] = field(default_factory=lambda: _calibrated_spring()["band_edges_kpa"])  # [kPa]
+    stiffness_n_per_m: list[float] = field(default_factory=lambda: _calibrated_spring()["stiffness_n_per_m"])  # S [N/m]
+    hysteresis: str = "none"  # inflation/deflation law choosing the table (only none: one table, as the thesis)
 
     def __post_init__(self) -> None:
         edges, values = self.band_edges_kpa, self.stiffness_n_per_m
@@ -104,6 +104,10 @@ class SpringConfig:
 MUSCLE_RATED_FORCE_N = {"DMSP-10": 630.0, "DMSP-20": 1500.0, "DMSP-40": 6000.0}
 FITTED_SIZE = "DMSP-20"
 COUPLINGS = ("thesis", "kinematic")
+# Names of the force laws and muscle dynamics pamrun/muscle.py implements (its FORCE_LAWS and
+# DYNAMICS registries hold one class per name; a test keeps the two in step).
+FORCE_LAW_NAMES = ("thesis_polynomial",)
+DYNAMICS_NAMES = ("first_order",)
 COMMANDS = ("antagonistic", "independent")
 
 
@@ -111,11 +115,11 @@ COMMANDS = ("antagonistic", "independent")
 class JointCounts:
     """Muscles in parallel per direction, per joint (both legs alike)."""
 
-    hip_pitch: int = 1
-    hip_roll: int = 1
-    knee: int = 2
-    ankle_pitch: int = 2
-    ankle_roll: int = 1
+    hip_pitch: int = 1  # hip flexion/extension
+    hip_roll: int = 1  # hip abduction/adduction
+    knee: int = 2  # knee flexion/extension
+    ankle_pitch: int = 2  # ankle plantar/dorsiflexion
+    ankle_roll: int = 1  # ankle inversion/eversion
 
     def __post_init__(self) -> None:
         for name, value in vars(self).items():
@@ -126,11 +130,11 @@ class JointCounts:
 class JointRadii:
     """Pulley radius per joint [mm]; 0 = automatic (see MuscleConfig.min_contraction_pct)."""
 
-    hip_pitch: float = 0.0
-    hip_roll: float = 0.0
-    knee: float = 0.0
-    ankle_pitch: float = 0.0
-    ankle_roll: float = 0.0
+    hip_pitch: float = 0.0  # hip pitch
+    hip_roll: float = 0.0  # hip roll
+    knee: float = 0.0  # knee
+    ankle_pitch: float = 0.0  # ankle pitch
+    ankle_roll: float = 0.0  # ankle roll
 
     def __post_init__(self) -> None:
         for name in vars(self):
@@ -141,11 +145,11 @@ class JointRadii:
 class JointAngles:
     """Per-joint angle [deg] at which both muscles of the pair sit at their rest contraction."""
 
-    hip_pitch: float = 0.0
-    hip_roll: float = 0.0
-    knee: float = -5.0
-    ankle_pitch: float = 0.0
-    ankle_roll: float = 0.0
+    hip_pitch: float = 0.0  # hip pitch
+    hip_roll: float = 0.0  # hip roll
+    knee: float = -5.0  # knee: 5 deg past its extension stop, so equal pressures lock the straight knee
+    ankle_pitch: float = 0.0  # ankle pitch
+    ankle_roll: float = 0.0  # ankle roll
 
     def __post_init__(self) -> None:
         for name, value in vars(self).items():
@@ -194,33 +198,33 @@ class MuscleConfig:
 
     force_law: str = "thesis_polynomial"  # F(x, P) of Table 8.4
     dynamics: str = "first_order"  # D x' + S x = Fce - FL (§8.3), used by the thesis coupling
-    size: str = "DMSP-40"  # thesis: DMSP-20
-    nominal_length_m: float = 0.30  # thesis: 0.26 (DMSP-20-260N)
-    count: JointCounts = field(default_factory=JointCounts)  # thesis: one per direction
-    radius_mm: JointRadii = field(default_factory=JointRadii)
-    neutral_deg: JointAngles = field(default_factory=JointAngles)
+    size: str = "DMSP-40"  # DMSP-10, DMSP-20 or DMSP-40 (thesis: DMSP-20)
+    nominal_length_m: float = 0.30  # nominal length L0 [m] (thesis: 0.26, the DMSP-20-260N)
+    count: JointCounts = field(default_factory=JointCounts)  # muscles in parallel per direction (thesis: 1)
+    radius_mm: JointRadii = field(default_factory=JointRadii)  # pulley radius [mm]; 0 = automatic
+    neutral_deg: JointAngles = field(default_factory=JointAngles)  # angle where the pair balances [deg]
     # Festo rates the DMSP for 0-6 bar; the thesis drove it to 8 bar, the top of its fit (§8.3).
-    max_pressure_kpa: float = 600.0
+    max_pressure_kpa: float = 600.0  # the muscle's top pressure [kPa] (Festo: 6 bar; thesis: 8)
     tau_s: float = 0.3  # D = tau * S (§8.3)
     rest_contraction_pct: float = 14.06  # thesis coupling: zero-force contraction at 176.4 kPa (§10.1)
-    command: str = "antagonistic"
+    command: str = "antagonistic"  # antagonistic (10 actions, the thesis) or independent (20)
     v0_v: float = 3.0  # common command voltage V0; thesis 2.12 V (§9.5)
     dv_max_v: float = 3.0  # |dV| bound; thesis 0.71 V (§9.5), i.e. 1.4-2.8 bar
     # Muscle-joint coupling (see pamrun/actuation.py): "kinematic" (contraction follows the
     # joint through its pulley) or "thesis" (contraction is a dynamic state, the thesis' Simulink model).
-    coupling: str = "kinematic"
+    coupling: str = "kinematic"  # kinematic (contraction follows the joint) or thesis
     # Kinematic coupling, not in the thesis: both muscles' contraction in the standing pose
     # (a pre-tensioned pair: zero torque at zero action), and the most either may be stretched.
-    kinematic_rest_contraction_pct: float = 9.0
-    min_contraction_pct: float = -1.0
-    regulator: RegulatorConfig = field(default_factory=RegulatorConfig)
-    spring: SpringConfig = field(default_factory=SpringConfig)
+    kinematic_rest_contraction_pct: float = 9.0  # both muscles at the neutral angle [%] (thesis model: 6.5)
+    min_contraction_pct: float = -1.0  # the most a muscle may be stretched [%]; >= -3
+    regulator: RegulatorConfig = field(default_factory=RegulatorConfig)  # VPPM pressure regulator
+    spring: SpringConfig = field(default_factory=SpringConfig)  # spring table S(P) of the thesis dynamics
 
     def __post_init__(self) -> None:
-        from pamrun.muscle import DYNAMICS, FORCE_LAWS  # the registries live with the physics
-
-        _require(self.force_law in FORCE_LAWS, "force_law", f"unknown {self.force_law!r}; known: {sorted(FORCE_LAWS)}")
-        _require(self.dynamics in DYNAMICS, "dynamics", f"unknown {self.dynamics!r}; known: {sorted(DYNAMICS)}")
+        _require(self.force_law in FORCE_LAW_NAMES, "force_law",
+                 f"unknown {self.force_law!r}; known: {', '.join(FORCE_LAW_NAMES)}")
+        _require(self.dynamics in DYNAMICS_NAMES, "dynamics",
+                 f"unknown {self.dynamics!r}; known: {', '.join(DYNAMICS_NAMES)}")
         _require(self.size in MUSCLE_RATED_FORCE_N, "size",
                  f"unknown {self.size!r}; known: {', '.join(MUSCLE_RATED_FORCE_N)}")
         _positive(self, "nominal_length_m", "max_pressure_kpa", "tau_s", "v0_v")
@@ -236,7 +240,8 @@ class MuscleConfig:
                  "kinematic_rest_contraction_pct",
                  f"must exceed min_contraction_pct ({self.min_contraction_pct} %) and be <= 25 % (the DMSP's "
                  f"stroke), got {self.kinematic_rest_contraction_pct}")
-        _require(self.dv_max_v <= self.v0_v, "dv_max_v", f"must be <= v0_v ({self.v0_v} V): a voltage cannot go negative")
+        _require(self.dv_max_v <= self.v0_v, "dv_max_v",
+                 f"must be <= v0_v ({self.v0_v} V): a voltage cannot go negative")
 
     @property
     def force_scale(self) -> float:
@@ -253,7 +258,8 @@ class MuscleConfig:
         explicit = getattr(self.radius_mm, joint) / 1000.0
         if explicit > 0:
             return explicit
-        return (self.kinematic_rest_contraction_pct - self.min_contraction_pct) / 100.0 * self.nominal_length_m / reach_rad
+        span_pct = self.kinematic_rest_contraction_pct - self.min_contraction_pct
+        return span_pct / 100.0 * self.nominal_length_m / reach_rad
 
 
 def check_muscle_stretch(muscle: MuscleConfig, body: "BodyConfig") -> None:
@@ -286,26 +292,26 @@ class BodyConfig:
     height_m: float = 1.80  # Table 8.2 reference
     mass_kg: float = 80.0  # Table 8.2 reference
     # Pelvis/torso block: not in the thesis. Ratios of H and M, see pamrun/body.py for the source.
-    pelvis_mass_ratio: float = 0.142
-    pelvis_width_ratio: float = 0.191
-    pelvis_depth_ratio: float = 0.1
-    pelvis_height_ratio: float = 0.1
+    pelvis_mass_ratio: float = 0.142  # pelvis/torso block mass / M (Winter, Table 4.1)
+    pelvis_width_ratio: float = 0.191  # pelvis block width / H (Drillis & Contini hip width)
+    pelvis_depth_ratio: float = 0.1  # pelvis block depth / H
+    pelvis_height_ratio: float = 0.1  # pelvis block height / H
     hip_width_ratio: float = 0.1  # lateral distance between the two hip joint centres / H
     # Foot-ground contact (§8.1): stiffness = robot weight / overlap, damping = stiffness / 10.
     contact_overlap_m: float = 0.001
     contact_damping_ratio: float = 0.1  # damping [N s/m] = ratio * stiffness [N/m]
-    friction_static: float = 0.5
-    friction_dynamic: float = 0.6
-    friction_critical_velocity_m_s: float = 0.10
+    friction_static: float = 0.5  # sliding friction coefficient of the feet (MuJoCo has one: the static one)
+    friction_dynamic: float = 0.6  # the thesis' dynamic coefficient (no MuJoCo counterpart; kept for the record)
+    friction_critical_velocity_m_s: float = 0.10  # the thesis' critical velocity (no MuJoCo counterpart)
     # Joints (Table 8.2)
-    joint_stiffness_nm_per_rad: float = 0.0
-    joint_damping_nms_per_rad: float = 1.0
+    joint_stiffness_nm_per_rad: float = 0.0  # passive joint spring (Table 8.2: none)
+    joint_damping_nms_per_rad: float = 1.0  # passive joint damping (Table 8.2)
     # Joint limits: the thesis' Simscape stop is a spring-damper (1e4 N m/rad, 10 N m s/rad,
     # Table 8.2). MuJoCo's soft limit cannot be one (see pamrun/body.py); we use its own stiff,
     # critically damped stop: time constant [s] and damping ratio of the constraint. 5 ms holds
     # the sized muscles (up to ~100 N m at a limit) within 2 deg; 10 ms let the ankle pass by 4.
     joint_limit_timeconst_s: float = 0.005  # 2 physics steps, MuJoCo's stiffest stable stop
-    joint_limit_dampratio: float = 1.0
+    joint_limit_dampratio: float = 1.0  # damping ratio of the limit stop (1 = critically damped)
     # Left-leg limits, degrees from the standing pose (Table 8.3)
     hip_pitch_limits_deg: list[float] = field(default_factory=lambda: [-45.0, 45.0])
     hip_roll_limits_deg: list[float] = field(default_factory=lambda: [-22.5, 11.25])

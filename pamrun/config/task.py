@@ -17,11 +17,11 @@ class RewardConfig:
     r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf
     """
 
-    kvx: float = 1.0
-    ky: float = 4.0
-    kz: float = 60.0
-    kv: float = 0.02
-    kt: float = 25.0
+    kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
+    ky: float = 4.0  # weight of the squared lateral deviation y^2 [per m^2]
+    kz: float = 60.0  # weight of the squared height change (z - z0)^2 [per m^2]
+    kv: float = 0.02  # weight of the action effort sum(a^2)
+    kt: float = 25.0  # alive bonus per episode (kt Ts / Tf per step)
 
     def __post_init__(self) -> None:
         for name in ("kvx", "ky", "kz", "kv", "kt"):
