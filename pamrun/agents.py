@@ -128,3 +128,73 @@ def loss_parts(loss):
     if isinstance(loss, TD3Loss):
         return loss.value_loss, loss.actor_loss
     return loss.loss_value, loss.loss_actor
+
+
+class Learner:
+    """Everything that learns, for any algorithm: networks, exploration, loss, targets, optimisers.
+
+    ``update(sample)`` is one gradient step of the critic and, every ``actor_update_every``
+    steps, of the actor and the target networks; the DDPG/TD3 differences stay in
+    :func:`make_learner`.
+    """
+
+    def __init__(self, cfg: AlgoConfig, actor, critic, explore, loss, updater, critic_params, actor_params):
+        self.cfg = cfg
+        self.actor, self.critic, self.explore = actor, critic, explore
+        self.loss, self.updater = loss, updater
+        self.critic_loss_fn, self.actor_loss_fn = loss_parts(loss)
+        self.critic_params, self.actor_params = critic_params, actor_params
+        self.critic_opt = torch.optim.Adam(critic_params, lr=cfg.critic_lr)
+        self.actor_opt = torch.optim.Adam(actor_params, lr=cfg.actor_lr)
+        self.updates = 0
+        self.last_losses: tuple[float, float] = (math.nan, math.nan)
+
+    def update(self, sample) -> None:
+        # Critic and actor losses separately (as TorchRL's sota scripts): computing only what
+        # each step needs is ~1.5x faster than the full loss forward.
+        critic_loss = self.critic_loss_fn(sample)[0]
+        self.critic_opt.zero_grad()
+        critic_loss.backward()
+        nn.utils.clip_grad_norm_(self.critic_params, self.cfg.grad_clip)
+        self.critic_opt.step()
+        if self.updates % self.cfg.actor_update_every == 0:
+            actor_loss = self.actor_loss_fn(sample)[0]
+            self.actor_opt.zero_grad()
+            actor_loss.backward()
+            nn.utils.clip_grad_norm_(self.actor_params, self.cfg.grad_clip)
+            self.actor_opt.step()
+            self.updater.step()
+            self._actor_loss = actor_loss
+        self.updates += 1
+        self._critic_loss = critic_loss
+
+    def losses(self) -> tuple[float, float]:
+        """The last (actor, critic) losses, for logging."""
+        return self._actor_loss.item(), self._critic_loss.item()
+
+    def q0(self, observations: torch.Tensor) -> list[float]:
+        """Q(s, pi(s)) of each observation: the thesis' Q0 curve at episode starts (Fig. 10.24)."""
+        with torch.no_grad():
+            return self.critic.module(observations, self.actor.module(observations)).reshape(-1).tolist()
+
+    def state_dict(self) -> dict:
+        return {"loss": self.loss.state_dict(), "actor_opt": self.actor_opt.state_dict(),
+                "critic_opt": self.critic_opt.state_dict()}
+
+    def load_state_dict(self, state: dict, updates: int) -> None:
+        self.loss.load_state_dict(state["loss"])
+        self.actor_opt.load_state_dict(state["actor_opt"])
+        self.critic_opt.load_state_dict(state["critic_opt"])
+        self.updates = updates
+
+
+def make_learner(cfg: AlgoConfig, obs_size: int, action_size: int, action_spec) -> Learner:
+    """The learner of ``cfg.name`` for an env with these sizes and action spec."""
+    actor = make_actor(cfg, obs_size, action_size)
+    critic = make_critic(cfg, obs_size, action_size)
+    explore = make_exploration(cfg, actor, action_spec)
+    loss, updater, _ = make_loss(cfg, actor, critic, action_spec)
+    critic_net = loss.value_network_params if cfg.name == "ddpg" else loss.qvalue_network_params
+    return Learner(cfg, actor, critic, explore, loss, updater,
+                   critic_params=list(critic_net.flatten_keys().values()),
+                   actor_params=list(loss.actor_network_params.flatten_keys().values()))

@@ -1,4 +1,4 @@
-"""Saved agents on disk: what an agent file holds, where to find them, and loading them safely.
+"""Saved agents and resume state on disk: what they hold, saving, finding and loading them safely.
 
 An agent file (``checkpoints/agent_ep<N>_r<reward>.pt``, an evaluation's ``best.pt``) is a
 ``torch.save`` of plain data only: the actor's weights, the episode it was saved at, the
@@ -7,6 +7,11 @@ on its own. ``checkpoints/last.pt`` (the resume state) carries the same ``actor`
 ``algo`` and ``config`` entries. Everything is read with ``torch.load(weights_only=True)``:
 a file that tries to run code, a truncated file or one with the wrong shapes raises
 :class:`CheckpointError` naming the file, never executes anything.
+
+A training's checkpoint directory holds its threshold-saved agents (:func:`save_agent`,
+the best ``train.keep_saved`` kept) and its resume state (:func:`save_last`,
+:func:`load_last`): ``last.pt`` with the learner, counters and RNG states, and the replay
+buffer in ``buffer/``.
 """
 
 from __future__ import annotations
@@ -157,16 +162,11 @@ def check_fits(agent: Agent, obs_size: int, action_size: int) -> None:
 
 def save_agent_copy(agent: Agent, path: Path, **extra_meta) -> Path:
     """Write ``agent`` as a stand-alone agent file (e.g. an evaluation's ``best.pt``), atomically."""
-    import os
-
-    import torch
+    from pamrun.runio import atomic_save
 
     record = {"format": FORMAT, "actor": agent.actor_state, "meta": {**agent.meta, **extra_meta},
               "algo": agent.algo, "config": agent.config}
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    torch.save(record, tmp)
-    os.replace(tmp, path)
-    return path
+    return atomic_save(record, path)
 
 
 def _run_config(path: Path) -> dict[str, dict] | None:
@@ -194,3 +194,100 @@ def unique_labels(agents: list[Agent]) -> None:
         seen[agent.label] = n + 1
         if n:
             agent.label = f"{agent.label}#{n + 1}"
+
+
+# --------------------------------------------------------------------------- a training's checkpoints
+
+
+def save_agent(ckpt_dir: Path, actor_state: dict, row: dict, cfg, saved: list, keep: int) -> list:
+    """Save an actor with its episode's reward in name and metadata; keep the best ``keep``.
+
+    ``saved`` is the (reward, path) list of the agents on disk, best first; returns it updated."""
+    from pamrun.runio import atomic_save
+
+    path = ckpt_dir / f"agent_ep{row['episode']:06d}_r{row['reward']:.1f}.pt"
+    meta = {k: row[k] for k in ("episode", "frames", "reward", "distance_m", "q0")}
+    atomic_save(agent_record(actor_state, cfg, meta), path)
+    saved = sorted(saved + [(row["reward"], path)], key=lambda t: -t[0])
+    for _, old in saved[keep:]:
+        old.unlink(missing_ok=True)
+    return saved[:keep]
+
+
+def scan_saved(ckpt_dir: Path) -> list[tuple[float, Path]]:
+    """Threshold-saved agents already on disk, best first."""
+    import torch
+
+    found = [(torch.load(p, weights_only=True)["meta"]["reward"], p) for p in ckpt_dir.glob(AGENT_GLOB)]
+    return sorted(found, key=lambda t: -t[0])
+
+
+def drop_agents_after(ckpt_dir: Path, episodes: int) -> None:
+    """Delete agents saved after episode ``episodes`` (a resume runs those episodes again)."""
+    for agent in ckpt_dir.glob(AGENT_GLOB):
+        if int(agent.name.split("_")[1][2:]) > episodes:
+            agent.unlink()
+
+
+def save_last(ckpt_dir: Path, cfg, learner, buffer, counters: dict) -> None:
+    """Everything a resume needs, and the final actor as an agent (``pamrun eval`` reads it).
+
+    The buffer goes first, through a directory swap, then ``last.pt`` atomically, so a
+    crash at any moment leaves a loadable pair. Plain data only: loadable with
+    ``weights_only=True``."""
+    import os
+    import shutil
+
+    from pamrun.runio import atomic_save
+
+    tmp, live, old = ckpt_dir / "buffer.tmp", ckpt_dir / "buffer", ckpt_dir / "buffer.old"
+    shutil.rmtree(tmp, ignore_errors=True)
+    buffer.dumps(tmp)
+    shutil.rmtree(old, ignore_errors=True)
+    if live.exists():
+        os.replace(live, old)
+    os.replace(tmp, live)
+    shutil.rmtree(old, ignore_errors=True)
+    actor = agent_record(learner.actor.module.state_dict(), cfg,
+                         {"frames": counters["frames"], "episode": counters["episodes"]})
+    atomic_save({**actor, **learner.state_dict(), "counters": dict(counters), "rng": rng_states()}, ckpt_dir / LAST)
+
+
+def load_last(ckpt_dir: Path, learner, buffer) -> dict:
+    """Restore the learner, the replay buffer and the RNG states; return the counters."""
+    import torch
+
+    state = torch.load(ckpt_dir / LAST, weights_only=True)
+    counters = dict(state["counters"])
+    learner.load_state_dict(state, counters["updates"])
+    set_rng_states(state["rng"])
+    for name in ("buffer", "buffer.old"):  # the one before, if a crash came mid-swap
+        if (ckpt_dir / name).exists():
+            buffer.loads(ckpt_dir / name)
+            return counters
+    raise SystemExit(f"pamrun: no replay buffer in {ckpt_dir}: cannot resume")
+
+
+def rng_states() -> dict:
+    """Torch, numpy and Python RNG states as tensors, lists and numbers (weights_only-safe)."""
+    import random
+
+    import numpy as np
+    import torch
+
+    np_state = np.random.get_state(legacy=False)
+    np_state["state"]["key"] = np_state["state"]["key"].tolist()
+    return {"torch": torch.get_rng_state(), "numpy": np_state, "python": random.getstate()}
+
+
+def set_rng_states(rng: dict) -> None:
+    import random
+
+    import numpy as np
+    import torch
+
+    torch.set_rng_state(rng["torch"])
+    np_state = dict(rng["numpy"])
+    np_state["state"] = {**np_state["state"], "key": np.asarray(np_state["state"]["key"], dtype=np.uint32)}
+    np.random.set_state(np_state)
+    random.setstate(tuple(tuple(x) if isinstance(x, list) else x for x in rng["python"]))

@@ -334,7 +334,7 @@ def load_agents(spec: str, cfg) -> tuple[list[Agent], list[dict], list[dict]]:
 def evaluate(dcfg) -> None:
     """The Hydra task of ``pamrun eval``."""
     from pamrun.config import to_object
-    from pamrun.lab import run_dir
+    from pamrun.runio import run_dir
 
     cfg = to_object(dcfg)
     run_evaluation(cfg, cfg.ckpt, run_dir())
@@ -344,25 +344,34 @@ def run_evaluation(cfg, spec: str, out: Path) -> dict:
     """Evaluate the agents named by ``spec`` into ``out``; the selection (selection.json's content)."""
     from rich.console import Console
 
-    from pamrun import plots
-    from pamrun.checkpoints import save_agent_copy
-    from pamrun.runtime import usable_cores
-    from pamrun.train import Progress
-
     console = Console() if Console().is_terminal else Console(width=160)  # logs keep whole rows
-    ecfg = cfg.eval
     out.mkdir(parents=True, exist_ok=True)
     agents, kwargs, errors = load_agents(spec, cfg)
     for err in errors:
         console.print(f"[red]skipped[/red] {err['path']}: {err['error']}", soft_wrap=True)
     if not agents:
         raise SystemExit(f"pamrun: no usable checkpoint in {spec} ({len(errors)} unreadable; see above)")
+    results, workers, wall = run_all(agents, kwargs, cfg.eval, console)
+    ranked, best, selection = write_results(out, cfg, spec, agents, results, errors, workers, wall)
+    written = draw_figures(out, cfg.eval, agents, kwargs, results, best, console)
+    console.print(leaderboard_table(ranked, cfg.eval))
+    console.print(f"Best: [bold]{best.label}[/bold] -> {out / 'best.pt'}\n{selection['reason']}", soft_wrap=True)
+    if errors:
+        console.print(f"[red]{len(errors)} checkpoint(s) skipped[/red] (listed in leaderboard.json)")
+    console.print(f"Evaluated in {wall:.1f} s on {workers} worker(s). Wrote {', '.join(written)}", soft_wrap=True)
+    return selection
+
+
+def run_all(agents: list[Agent], kwargs: list[dict], ecfg, console) -> tuple[list[list[dict]], int, float]:
+    """Every agent's episodes, on ``eval.workers`` processes with a progress display."""
+    from pamrun.runio import Progress
+    from pamrun.runtime import usable_cores
+
     workers = min(ecfg.workers or usable_cores(), len(agents) * ecfg.episodes)
     import pamrun.agents  # noqa: F401  (imported before the clock starts)
 
     console.print(f"Evaluating {len(agents)} agent(s) x {ecfg.episodes} episode(s), seeds {ecfg.seed}.."
                   f"{ecfg.seed + ecfg.episodes - 1}, on {workers} worker(s)")
-
     start = time.perf_counter()
     progress = Progress(console, len(agents) * ecfg.episodes, 0, unit="episodes")
     done = [0]
@@ -377,22 +386,27 @@ def run_evaluation(cfg, spec: str, out: Path) -> dict:
         raise SystemExit("pamrun: evaluation interrupted; no results written (checkpoints are untouched)") from None
     finally:
         progress.stop()
-    wall = time.perf_counter() - start
+    return results, workers, time.perf_counter() - start
 
+
+def write_results(out: Path, cfg, spec: str, agents: list[Agent], results: list[list[dict]], errors: list[dict],
+                  workers: int, wall_s: float) -> tuple[list[dict], Agent, dict]:
+    """episodes.jsonl, the leaderboard, best.pt and selection.json; the ranking, best agent, selection."""
+    from pamrun.checkpoints import save_agent_copy
+    from pamrun.runio import write_json
+
+    ecfg = cfg.eval
     with (out / "episodes.jsonl").open("w") as fh:
         for agent, episodes in zip(agents, results):
             for k, episode in enumerate(episodes):
                 fh.write(json.dumps({"agent": agent.label, "episode": k, **episode,
                                      "walk_pass": walk_passed(episode, ecfg.walk_duration_s, ecfg.walk_lateral_m)})
                          + "\n")
-    rows = []
-    for agent, episodes in zip(agents, results):
-        rows.append({"agent": agent.label, "path": str(agent.path),
-                     "train_episode": agent.meta.get("episode"), "train_reward": agent.meta.get("reward"),
-                     **aggregate(episodes, ecfg.walk_duration_s, ecfg.walk_lateral_m)})
+    rows = [{"agent": agent.label, "path": str(agent.path), "train_episode": agent.meta.get("episode"),
+             "train_reward": agent.meta.get("reward"), **aggregate(episodes, ecfg.walk_duration_s, ecfg.walk_lateral_m)}
+            for agent, episodes in zip(agents, results)]
     ranked = rank(rows, list(ecfg.rank_by))
-    write_leaderboard(out, ranked, errors, cfg, spec, workers, wall)
-
+    write_leaderboard(out, ranked, errors, cfg, spec, workers, wall_s)
     best_row = ranked[0]
     best = next(a for a in agents if a.label == best_row["agent"])
     summary = {k: best_row[k] for k in ("walk_test", "walk_pass_rate", "distance_mean", "return_mean")}
@@ -402,7 +416,14 @@ def run_evaluation(cfg, spec: str, out: Path) -> dict:
                  "metrics": {k: best_row[k] for k in LEADERBOARD_FIELDS if k not in ("rank", "agent", "path")},
                  "runner_up": ranked[1]["agent"] if len(ranked) > 1 else None, "agents": len(ranked),
                  "skipped": errors}
-    (out / "selection.json").write_text(json.dumps(selection, indent=2))
+    write_json(out / "selection.json", selection)
+    return ranked, best, selection
+
+
+def draw_figures(out: Path, ecfg, agents: list[Agent], kwargs: list[dict], results: list[list[dict]], best: Agent,
+                 console) -> list[str]:
+    """Figures from the files just written (and the best agent's video); the names of all files."""
+    from pamrun import plots
 
     written = ["episodes.jsonl", "leaderboard.csv", "leaderboard.json", "best.pt", "selection.json"]
     plots.trajectories(out / "episodes.jsonl", out / "leaderboard.json", out / "trajectories.png",
@@ -421,13 +442,7 @@ def run_evaluation(cfg, spec: str, out: Path) -> dict:
         console.print(f"Video: {video['frames']} frames, {video['duration_s']:.2f} s"
                       + ("" if same else " [red](the replay differs from the evaluated episode)[/red]"))
         written.append("best_episode.mp4")
-
-    console.print(leaderboard_table(ranked, ecfg))
-    console.print(f"Best: [bold]{best.label}[/bold] -> {out / 'best.pt'}\n{selection['reason']}", soft_wrap=True)
-    if errors:
-        console.print(f"[red]{len(errors)} checkpoint(s) skipped[/red] (listed in leaderboard.json)")
-    console.print(f"Evaluated in {wall:.1f} s on {workers} worker(s). Wrote {', '.join(written)}", soft_wrap=True)
-    return selection
+    return written
 
 
 def write_leaderboard(out: Path, ranked: list[dict], errors: list[dict], cfg, spec: str, workers: int,

@@ -10,7 +10,6 @@ import datetime as dt
 import json
 import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 from omegaconf import DictConfig
@@ -20,18 +19,10 @@ from rich.table import Table
 from pamrun import plots
 from pamrun.config import SPRING_FILE, Config, to_object
 from pamrun.muscle import FORCE_LAWS, calibrate_spring, simulate_step
+from pamrun.runio import run_dir
 
 # A log file or pipe gets 120 columns (rich's 80 would cut the wider tables).
 console = Console() if sys.stdout.isatty() else Console(width=120)
-
-
-def run_dir() -> Path:
-    """The Hydra run directory of this job (created by Hydra), announced on the console."""
-    from hydra.core.hydra_config import HydraConfig
-
-    path = Path(HydraConfig.get().runtime.output_dir)
-    console.print(f"Run directory: [bold]{path}[/bold]")
-    return path
 
 
 def step_responses(cfg: Config, every_s: float = 0.01) -> dict:

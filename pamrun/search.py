@@ -65,7 +65,7 @@ def optuna_search(dcfg: DictConfig) -> None:
     from rich.console import Console
 
     from pamrun.config import to_object
-    from pamrun.lab import run_dir
+    from pamrun.runio import run_dir
 
     console = Console()
     cfg = to_object(dcfg)

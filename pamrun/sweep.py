@@ -35,6 +35,7 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
 from pamrun.config import JOB_METRICS
+from pamrun.runio import read_json, write_json
 from pamrun.runtime import usable_cores  # importing it registers the resolvers of conf/sweep.yaml
 
 JOB_FILE = "job.json"
@@ -73,16 +74,8 @@ def sweep_dir_for(args: list[str], kind: str = "sweep") -> str:
 # --------------------------------------------------------------------------- one job
 
 
-def read_json(path: Path) -> dict[str, Any]:
-    """A JSON file a job left (job.json, run.json, ...), or {} if it is not there yet."""
-    path = Path(path)
-    return json.loads(path.read_text()) if path.exists() else {}
-
-
 def write_job(job_dir: Path, record: dict) -> None:
-    tmp = Path(job_dir) / (JOB_FILE + ".tmp")
-    tmp.write_text(json.dumps(record, indent=2))
-    os.replace(tmp, Path(job_dir) / JOB_FILE)
+    write_json(Path(job_dir) / JOB_FILE, record)
 
 
 def job(dcfg: DictConfig) -> dict:

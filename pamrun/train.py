@@ -14,12 +14,9 @@ from __future__ import annotations
 
 import csv
 import functools
-import json
 import math
 import os
 import random
-import shutil
-import subprocess
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -29,10 +26,12 @@ import torch
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from pamrun.checkpoints import agent_record
+from pamrun import agents, checkpoints, plots
 from pamrun.config import Config, to_object, upgrade_saved_config
+from pamrun.runio import Progress, git_commit, package_versions, read_json, run_dir, write_json
 from pamrun.runtime import usable_cores
 
+NEW_RUN = {"frames": 0, "episodes": 0, "updates": 0, "wall_time_s": 0.0}  # a run's counters at its start
 CSV_FIELDS = ("episode", "frames", "reward", "avg_reward", "q0", "length", "distance_m", "wall_time_s")
 
 
@@ -72,17 +71,10 @@ def seed_everything(seed: int) -> None:
     torch.manual_seed(seed)
 
 
-def atomic_save(obj, path: Path) -> None:
-    """torch.save to a temporary file, then rename: a crash never leaves a torn file."""
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    torch.save(obj, tmp)
-    os.replace(tmp, path)
-
-
 class EpisodeLog:
-    """Per-episode rows in episodes.csv and TensorBoard, and the running average."""
+    """What a run records as it goes: episodes.csv, TensorBoard, and the running average."""
 
-    def __init__(self, out: Path, window: int, writer):
+    def __init__(self, out: Path, window: int, writer, episodes: int = 0):
         self.path = out / "episodes.csv"
         new = not self.path.exists()
         history = [] if new else [float(r["reward"]) for r in csv.DictReader(self.path.open())]
@@ -94,17 +86,35 @@ class EpisodeLog:
         self.window = window
         self.writer = writer
         self.best = max(self.rewards, default=-math.inf)
+        self.episodes = episodes
 
-    def add(self, row: dict) -> dict:
-        self.rewards.append(row["reward"])
-        row["avg_reward"] = float(np.mean(self.rewards[-self.window:]))
+    def add(self, episode: dict, q0: float, frames: int, wall_time_s: float) -> dict:
+        """One finished episode: its row (numbered from the run's count) in the CSV and TensorBoard."""
+        self.episodes += 1
+        self.rewards.append(episode["reward"])
+        row = {"episode": self.episodes, "frames": frames, "reward": episode["reward"],
+               "avg_reward": float(np.mean(self.rewards[-self.window:])), "q0": q0, "length": episode["length"],
+               "distance_m": episode["distance_m"], "wall_time_s": round(wall_time_s, 3)}
         self.best = max(self.best, row["reward"])
         self.csv.writerow({k: (round(v, 5) if isinstance(v, float) else v) for k, v in row.items()})
         self.file.flush()  # a killed process loses no finished episode
-        ep = row["episode"]
         for key in ("reward", "avg_reward", "q0", "length", "distance_m"):
-            self.writer.add_scalar(f"episode/{key}", row[key], ep)
+            self.writer.add_scalar(f"episode/{key}", row[key], self.episodes)
         return row
+
+    def losses(self, actor_critic: tuple[float, float], updates: int) -> None:
+        self.writer.add_scalar("loss/actor", actor_critic[0], updates)
+        self.writer.add_scalar("loss/critic", actor_critic[1], updates)
+
+    def batch(self, cfg: Config, frames: int, updates: int, elapsed_s: float, progress: Progress) -> None:
+        """Throughput and exploration in TensorBoard, and the progress line, after each batch."""
+        self.writer.add_scalar("throughput/frames_per_s", frames / elapsed_s, frames)
+        self.writer.add_scalar("throughput/updates_per_s", updates / elapsed_s, frames)
+        noise_std = math.sqrt(cfg.algo.noise_variance) * agents.noise_scale(cfg.algo, frames)
+        self.writer.add_scalar("exploration/noise_std", noise_std, frames)
+        avg = float(np.mean(self.rewards[-self.window:])) if self.rewards else float("nan")
+        progress.update(frames, f"episodes {self.episodes}  avg {avg:.2f}  best {self.best:.2f}  "
+                                f"{frames / elapsed_s:.0f} frames/s  {updates / elapsed_s:.1f} updates/s")
 
     def sync(self) -> None:
         """Make the rows durable before a checkpoint refers to them (machine loss)."""
@@ -114,85 +124,48 @@ class EpisodeLog:
     def close(self) -> None:
         self.file.close()
 
+    @staticmethod
+    def truncate(out: Path, episodes: int) -> None:
+        """Forget what was logged after the last checkpoint: those episodes will be run again."""
+        path = out / "episodes.csv"
+        if path.exists():
+            rows = list(csv.DictReader(path.open()))
+            kept = [r for r in rows if int(r["episode"]) <= episodes]
+            with path.open("w", newline="") as fh:
+                w = csv.DictWriter(fh, fieldnames=CSV_FIELDS)
+                w.writeheader()
+                w.writerows(kept)
+
 
 def train(dcfg: DictConfig) -> None:
-    """The Hydra task of ``pamrun train``."""
+    """The Hydra task of ``pamrun train``: the recipe, top to bottom."""
     from rich.console import Console
     from torch.utils.tensorboard import SummaryWriter
-    from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
-    from pamrun import agents
     from pamrun.env import space_sizes
-    from pamrun.lab import run_dir
 
     console = Console()
-    cfg: Config = to_object(dcfg)
-    out = run_dir()
+    cfg, out, resuming = open_run(to_object(dcfg), run_dir(), console)
     ckpt_dir = out / "checkpoints"
-    resuming = bool(cfg.resume)
-    if resuming:
-        cfg = load_run_config(out)
-        console.print(f"Resuming {out} with its own config ({cfg.algo.name}); command-line values are ignored.")
-    else:
-        if (ckpt_dir / "last.pt").exists():
-            raise SystemExit(f"pamrun: {out} already holds a training run; continue it with resume={out}")
-        (out / "pamrun_config.yaml").write_text(OmegaConf.to_yaml(OmegaConf.structured(cfg)))
-    ckpt_dir.mkdir(exist_ok=True)
     seed_everything(cfg.seed)
     torch.set_num_threads(cfg.train.threads or max(1, usable_cores() - cfg.train.workers + 1))
-
-    probe = make_env(cfg)
-    action_spec = probe.action_spec_unbatched
-    probe.close()
-    obs_size, act_size = space_sizes(cfg.muscle)
-    actor = agents.make_actor(cfg.algo, obs_size, act_size)
-    critic = agents.make_critic(cfg.algo, obs_size, act_size)
-    explore = agents.make_exploration(cfg.algo, actor, action_spec)
-    loss, updater, _ = agents.make_loss(cfg.algo, actor, critic, action_spec)
-    critic_loss_fn, actor_loss_fn = agents.loss_parts(loss)
-    actor_params = list(loss.actor_network_params.flatten_keys().values())
-    critic_net_params = loss.value_network_params if cfg.algo.name == "ddpg" else loss.qvalue_network_params
-    critic_params = list(critic_net_params.flatten_keys().values())
-    actor_opt = torch.optim.Adam(actor_params, lr=cfg.algo.actor_lr)
-    critic_opt = torch.optim.Adam(critic_params, lr=cfg.algo.critic_lr)
-    buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(cfg.train.buffer_size), batch_size=cfg.algo.batch_size)
-
-    frames = episodes = updates = 0
-    previous_s = 0.0
-    if resuming:
-        state = torch.load(ckpt_dir / "last.pt", weights_only=True)
-        loss.load_state_dict(state["loss"])
-        actor_opt.load_state_dict(state["actor_opt"])
-        critic_opt.load_state_dict(state["critic_opt"])
-        frames, episodes, updates = (state["counters"][k] for k in ("frames", "episodes", "updates"))
-        previous_s = state["counters"].get("wall_time_s", 0.0)
-        set_rng_states(state["rng"])
-        load_buffer(buffer, ckpt_dir)
-        truncate_after(out, ckpt_dir, episodes)
-        if frames >= cfg.train.max_frames or episodes >= cfg.train.max_episodes:
-            console.print(f"{out} already finished its budget ({frames} frames, {episodes} episodes): nothing to do.")
-            return
-    agents.set_noise_scale(explore, agents.noise_scale(cfg.algo, frames))
-
-    writer = SummaryWriter(str(out / "tensorboard"))
-    log = EpisodeLog(out, cfg.train.avg_window, writer)
-    run_info = json.loads((out / "run.json").read_text()) if resuming else {
-        "command": " ".join(["pamrun", "train", *HydraConfig.get().overrides.task]),
-        "git_commit": git_commit(), "versions": package_versions(), "seed": cfg.seed, "algo": cfg.algo.name,
-        "start": time.strftime("%Y-%m-%dT%H:%M:%S")}
-    run_info["status"] = "running"
-    if resuming:
-        run_info.setdefault("resumed", []).append({"at": time.strftime("%Y-%m-%dT%H:%M:%S"), "frames": frames})
-    (out / "run.json").write_text(json.dumps(run_info, indent=2))
-
-    saved = scan_saved(ckpt_dir)
-    running: dict[int, dict] = {}
-    collector = make_collector(cfg, explore, cfg.train.max_frames - frames,
+    learner = agents.make_learner(cfg.algo, *space_sizes(cfg.muscle), action_spec(cfg))
+    buffer = make_buffer(cfg)
+    counters = resume(out, learner, buffer) if resuming else dict(NEW_RUN)
+    if counters["frames"] >= cfg.train.max_frames or counters["episodes"] >= cfg.train.max_episodes:
+        return console.print(f"{out} already finished its budget ({counters['frames']} frames, "
+                             f"{counters['episodes']} episodes): nothing to do.")
+    frames = counters["frames"]
+    agents.set_noise_scale(learner.explore, agents.noise_scale(cfg.algo, frames))
+    log = EpisodeLog(out, cfg.train.avg_window, SummaryWriter(str(out / "tensorboard")), counters["episodes"])
+    tracker = EpisodeTracker()
+    run_info = start_run_info(out, cfg, resuming, frames)
+    saved = checkpoints.scan_saved(ckpt_dir)
+    collector = make_collector(cfg, learner.explore, cfg.train.max_frames - frames,
                                max(0, cfg.train.init_random_frames - frames))
     collector.set_seed(cfg.seed + frames)
-    start = time.perf_counter() - previous_s
-    update_budget = 0.0
-    status = "max_frames"
+    clock = Clock(counters["wall_time_s"])
+    update_budget, status = 0.0, None
     console.print(header_table(cfg, out))
     progress = Progress(console, cfg.train.max_frames, frames)
     try:
@@ -201,128 +174,166 @@ def train(dcfg: DictConfig) -> None:
             n = batch.numel()
             frames += n
             buffer.extend(batch)
-            # ---- episodes finished in this batch
-            finished = []
-            traj = batch["collector", "traj_ids"].tolist()
-            reward = batch["next", "reward"].reshape(-1).tolist()
-            done = batch["next", "done"].reshape(-1).tolist()
-            distance = batch["next", "distance"].reshape(-1).tolist()
-            for i in range(n):
-                ep = running.setdefault(traj[i], {"reward": 0.0, "length": 0, "obs0": batch["observation"][i]})
-                ep["reward"] += reward[i]
-                ep["length"] += 1
-                if done[i]:
-                    ep["distance_m"] = distance[i]
-                    finished.append(running.pop(traj[i]))
-            if finished:
-                with torch.no_grad():
-                    obs0 = torch.stack([e["obs0"] for e in finished])
-                    q0 = critic.module(obs0, actor.module(obs0)).reshape(-1).tolist()
-                for e, q in zip(finished, q0):
-                    episodes += 1
-                    row = log.add({"episode": episodes, "frames": frames, "reward": e["reward"], "avg_reward": 0.0,
-                                   "q0": q, "length": e["length"], "distance_m": e["distance_m"],
-                                   "wall_time_s": round(time.perf_counter() - start, 3)})
-                    if e["reward"] >= cfg.train.save_threshold:
-                        saved = save_agent(ckpt_dir, actor, row, cfg, saved)
-            # ---- gradient updates
+            saved = record_episodes(tracker.add(batch), cfg, learner, log, frames, clock.seconds(), saved, ckpt_dir)
             learn_frames = frames - max(cfg.train.init_random_frames, frames - n)  # frames past the random phase
             if learn_frames > 0:
-                update_budget += learn_frames * cfg.train.updates_per_frame
-                while update_budget >= 1:
-                    update_budget -= 1
-                    sample = buffer.sample()
-                    # Critic and actor losses separately (as TorchRL's sota scripts): computing
-                    # only what each step needs is ~1.5x faster than the full loss forward.
-                    critic_loss = critic_loss_fn(sample)[0]
-                    critic_opt.zero_grad()
-                    critic_loss.backward()
-                    torch.nn.utils.clip_grad_norm_(critic_params, cfg.algo.grad_clip)
-                    critic_opt.step()
-                    if updates % cfg.algo.actor_update_every == 0:
-                        actor_loss = actor_loss_fn(sample)[0]
-                        actor_opt.zero_grad()
-                        actor_loss.backward()
-                        torch.nn.utils.clip_grad_norm_(actor_params, cfg.algo.grad_clip)
-                        actor_opt.step()
-                        updater.step()
-                    updates += 1
-                    if updates % 50 == 0:
-                        writer.add_scalar("loss/actor", actor_loss.item(), updates)
-                        writer.add_scalar("loss/critic", critic_loss.item(), updates)
+                update_budget = learn(learner, buffer, log, update_budget + learn_frames * cfg.train.updates_per_frame)
                 collector.update_policy_weights_()
-            scale = agents.noise_scale(cfg.algo, frames)
-            agents.set_noise_scale(explore, scale)
-            elapsed = time.perf_counter() - start
-            writer.add_scalar("throughput/frames_per_s", frames / elapsed, frames)
-            writer.add_scalar("throughput/updates_per_s", updates / elapsed, frames)
-            writer.add_scalar("exploration/noise_std", math.sqrt(cfg.algo.noise_variance) * scale, frames)
-            avg = float(np.mean(log.rewards[-cfg.train.avg_window:])) if log.rewards else float("nan")
-            progress.update(frames, f"episodes {episodes}  avg {avg:.2f}  best {log.best:.2f}  "
-                                    f"{frames / elapsed:.0f} frames/s  {updates / elapsed:.1f} updates/s")
+            agents.set_noise_scale(learner.explore, agents.noise_scale(cfg.algo, frames))
+            log.batch(cfg, frames, learner.updates, clock.seconds(), progress)
             if frames % cfg.train.checkpoint_every_frames < n:
                 log.sync()
-                save_last(ckpt_dir, cfg, actor, loss, actor_opt, critic_opt, buffer, frames, episodes, updates, elapsed)
-            if episodes >= cfg.train.max_episodes:
-                status = "max_episodes"
-                break
-            if cfg.train.max_minutes and elapsed > 60 * cfg.train.max_minutes:
-                status = "max_minutes"
-                break
-            if cfg.train.target_avg_reward and len(log.rewards) >= cfg.train.avg_window and \
-                    np.mean(log.rewards[-cfg.train.avg_window:]) >= cfg.train.target_avg_reward:
-                status = "target_avg_reward"
+                checkpoints.save_last(ckpt_dir, cfg, learner, buffer, run_counters(frames, log, learner, clock))
+            status = stop_reason(cfg, log, clock.seconds())
+            if status:
                 break
     except KeyboardInterrupt:
         status = "interrupted"
+    except Exception:
+        status = "failed"
+        raise
     finally:
         progress.stop()
         collector.shutdown()
-        log.sync()
-        save_last(ckpt_dir, cfg, actor, loss, actor_opt, critic_opt, buffer, frames, episodes, updates,
-                  time.perf_counter() - start)
-        log.close()
-        writer.close()
-        run_info.update(status=status, end=time.strftime("%Y-%m-%dT%H:%M:%S"), frames=frames, episodes=episodes,
-                        wall_time_s=round(time.perf_counter() - start, 3),
-                        updates=updates, best_reward=log.best if episodes else None,
-                        saved_agents=[str(p.name) for _, p in saved])
-        (out / "run.json").write_text(json.dumps(run_info, indent=2))
-    from pamrun import plots
-
+        close_run(out, cfg, learner, buffer, run_counters(frames, log, learner, clock), log, run_info,
+                  status or "max_frames", saved)
     plots.training_curves(out / "episodes.csv", out / "training.png")
     console.print(summary_table(run_info, log, saved, out))
 
 
-class Progress:
-    """A rich progress bar with ETA on a terminal; a plain line every ~10 s otherwise (CI, files)."""
+def resume(out: Path, learner, buffer) -> dict:
+    """Learner, buffer and RNG states of the last checkpoint; forget what came after it."""
+    counters = checkpoints.load_last(out / "checkpoints", learner, buffer)
+    EpisodeLog.truncate(out, counters["episodes"])
+    checkpoints.drop_agents_after(out / "checkpoints", counters["episodes"])
+    return counters
 
-    def __init__(self, console, total: int, done: int, unit: str = "frames"):
-        self.console = console
-        self.unit = unit
-        self.bar = None
-        self.last_line = 0.0
-        if console.is_terminal and os.environ.get("PAMRUN_PROGRESS") != "lines":  # sweep jobs share a terminal
-            from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-            from rich.progress import Progress as RichProgress
 
-            self.bar = RichProgress(TextColumn(unit), BarColumn(), MofNCompleteColumn(),
-                                    TextColumn("{task.fields[info]}"), TimeElapsedColumn(), TextColumn("ETA"),
-                                    TimeRemainingColumn(), console=console)
-            self.task = self.bar.add_task(unit, total=total, completed=done, info="")
+def record_episodes(finished: list[dict], cfg: Config, learner, log: "EpisodeLog", frames: int, wall_time_s: float,
+                    saved: list, ckpt_dir: Path) -> list:
+    """Log the episodes a batch finished (with Q0) and save the agents that reach the threshold."""
+    q0s = learner.q0(torch.stack([e["obs0"] for e in finished])) if finished else []
+    for episode, q0 in zip(finished, q0s):
+        row = log.add(episode, q0, frames, wall_time_s)
+        if episode["reward"] >= cfg.train.save_threshold:
+            saved = checkpoints.save_agent(ckpt_dir, learner.actor.module.state_dict(), row, cfg, saved,
+                                           cfg.train.keep_saved)
+    return saved
 
-    def update(self, done: int, info: str) -> None:
-        if self.bar is not None:
-            if not self.bar.live.is_started:  # started on first use: worker processes fork before its thread
-                self.bar.start()
-            self.bar.update(self.task, completed=done, info=info)
-        elif time.monotonic() - self.last_line > 10:
-            self.last_line = time.monotonic()
-            self.console.print(f"{self.unit} {done}  {info}", soft_wrap=True)
 
-    def stop(self) -> None:
-        if self.bar is not None:
-            self.bar.stop()
+def learn(learner, buffer, log: "EpisodeLog", budget: float) -> float:
+    """Spend the whole updates of ``budget`` on replay samples; return the fraction left."""
+    while budget >= 1:
+        budget -= 1
+        learner.update(buffer.sample())
+        if learner.updates % 50 == 0:
+            log.losses(learner.losses(), learner.updates)
+    return budget
+
+
+def run_counters(frames: int, log: "EpisodeLog", learner, clock: "Clock") -> dict:
+    return {"frames": frames, "episodes": log.episodes, "updates": learner.updates, "wall_time_s": clock.seconds()}
+
+
+def open_run(cfg: Config, out: Path, console) -> tuple[Config, Path, bool]:
+    """The config to run with (a resume's own), having refused to overwrite another run."""
+    resuming = bool(cfg.resume)
+    if resuming:
+        cfg = load_run_config(out)
+        console.print(f"Resuming {out} with its own config ({cfg.algo.name}); command-line values are ignored.")
+    else:
+        if (out / "checkpoints" / checkpoints.LAST).exists():
+            raise SystemExit(f"pamrun: {out} already holds a training run; continue it with resume={out}")
+        (out / "pamrun_config.yaml").write_text(OmegaConf.to_yaml(OmegaConf.structured(cfg)))
+    (out / "checkpoints").mkdir(exist_ok=True)
+    return cfg, out, resuming
+
+
+def action_spec(cfg: Config):
+    """The env's action spec, as TorchRL sees it (the losses and exploration need it)."""
+    probe = make_env(cfg)
+    spec = probe.action_spec_unbatched
+    probe.close()
+    return spec
+
+
+def make_buffer(cfg: Config):
+    from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+
+    return TensorDictReplayBuffer(storage=LazyTensorStorage(cfg.train.buffer_size), batch_size=cfg.algo.batch_size)
+
+
+class Clock:
+    """Wall-clock seconds of training, carried over a resume."""
+
+    def __init__(self, previous_s: float = 0.0):
+        self.start = time.perf_counter() - previous_s
+
+    def seconds(self) -> float:
+        return time.perf_counter() - self.start
+
+
+class EpisodeTracker:
+    """Sums each collector trajectory's reward and length until it is done."""
+
+    def __init__(self):
+        self.running: dict[int, dict] = {}
+
+    def add(self, batch) -> list[dict]:
+        """The episodes this (flat) batch finishes: reward, length, first observation, distance."""
+        finished = []
+        traj = batch["collector", "traj_ids"].tolist()
+        reward = batch["next", "reward"].reshape(-1).tolist()
+        done = batch["next", "done"].reshape(-1).tolist()
+        distance = batch["next", "distance"].reshape(-1).tolist()
+        for i in range(len(traj)):
+            ep = self.running.setdefault(traj[i], {"reward": 0.0, "length": 0, "obs0": batch["observation"][i]})
+            ep["reward"] += reward[i]
+            ep["length"] += 1
+            if done[i]:
+                ep["distance_m"] = distance[i]
+                finished.append(self.running.pop(traj[i]))
+        return finished
+
+
+def stop_reason(cfg: Config, log: "EpisodeLog", elapsed_s: float) -> str | None:
+    """Why training stops now (``train.max_*`` or the target average), or None."""
+    t = cfg.train
+    if log.episodes >= t.max_episodes:
+        return "max_episodes"
+    if t.max_minutes and elapsed_s > 60 * t.max_minutes:
+        return "max_minutes"
+    if t.target_avg_reward and len(log.rewards) >= t.avg_window and \
+            np.mean(log.rewards[-t.avg_window:]) >= t.target_avg_reward:
+        return "target_avg_reward"
+    return None
+
+
+def start_run_info(out: Path, cfg: Config, resuming: bool, frames: int) -> dict:
+    """run.json at the start: provenance, and ``running`` until the run ends."""
+    info = read_json(out / "run.json") if resuming else {
+        "command": " ".join(["pamrun", "train", *HydraConfig.get().overrides.task]),
+        "git_commit": git_commit(), "versions": package_versions(), "seed": cfg.seed, "algo": cfg.algo.name,
+        "start": time.strftime("%Y-%m-%dT%H:%M:%S")}
+    info["status"] = "running"
+    if resuming:
+        info.setdefault("resumed", []).append({"at": time.strftime("%Y-%m-%dT%H:%M:%S"), "frames": frames})
+    write_json(out / "run.json", info)
+    return info
+
+
+def close_run(out: Path, cfg: Config, learner, buffer, counters: dict, log: "EpisodeLog", info: dict, status: str,
+              saved: list) -> None:
+    """The final checkpoint, the log made durable and closed, and run.json with how the run ended."""
+    log.sync()
+    checkpoints.save_last(out / "checkpoints", cfg, learner, buffer, counters)
+    log.close()
+    log.writer.close()
+    info.update(status=status, end=time.strftime("%Y-%m-%dT%H:%M:%S"), frames=counters["frames"],
+                episodes=counters["episodes"], wall_time_s=round(counters["wall_time_s"], 3),
+                updates=counters["updates"], best_reward=log.best if counters["episodes"] else None,
+                saved_agents=[str(p.name) for _, p in saved])
+    write_json(out / "run.json", info)
 
 
 def header_table(cfg: Config, out: Path):
@@ -370,86 +381,6 @@ def summary_table(run_info: dict, log: EpisodeLog, saved: list, out: Path):
     return table
 
 
-def save_agent(ckpt_dir: Path, actor, row: dict, cfg: Config, saved: list) -> list:
-    """Save the actor with its episode's reward in name and metadata; keep the best ``keep_saved``."""
-    path = ckpt_dir / f"agent_ep{row['episode']:06d}_r{row['reward']:.1f}.pt"
-    meta = {k: row[k] for k in ("episode", "frames", "reward", "distance_m", "q0")}
-    atomic_save(agent_record(actor.module.state_dict(), cfg, meta), path)
-    saved = sorted(saved + [(row["reward"], path)], key=lambda t: -t[0])
-    for _, old in saved[cfg.train.keep_saved:]:
-        old.unlink(missing_ok=True)
-    return saved[: cfg.train.keep_saved]
-
-
-def save_last(ckpt_dir: Path, cfg: Config, actor, loss, actor_opt, critic_opt, buffer, frames: int, episodes: int,
-              updates: int, wall_time_s: float) -> None:
-    """Everything a resume needs, and the final actor as an agent (``pamrun eval`` reads it).
-
-    The buffer goes first, through a directory swap, then ``last.pt`` atomically, so a
-    crash at any moment leaves a loadable pair. Plain data only: loadable with
-    ``weights_only=True``."""
-    tmp, live, old = ckpt_dir / "buffer.tmp", ckpt_dir / "buffer", ckpt_dir / "buffer.old"
-    shutil.rmtree(tmp, ignore_errors=True)
-    buffer.dumps(tmp)
-    shutil.rmtree(old, ignore_errors=True)
-    if live.exists():
-        os.replace(live, old)
-    os.replace(tmp, live)
-    shutil.rmtree(old, ignore_errors=True)
-    counters = {"frames": frames, "episodes": episodes, "updates": updates, "wall_time_s": wall_time_s}
-    atomic_save(
-        {**agent_record(actor.module.state_dict(), cfg, {"frames": frames, "episode": episodes}),
-         "loss": loss.state_dict(), "actor_opt": actor_opt.state_dict(), "critic_opt": critic_opt.state_dict(),
-         "counters": counters, "rng": rng_states()},
-        ckpt_dir / "last.pt",
-    )
-
-
-def rng_states() -> dict:
-    """Torch, numpy and Python RNG states as tensors, lists and numbers (weights_only-safe)."""
-    np_state = np.random.get_state(legacy=False)
-    np_state["state"]["key"] = np_state["state"]["key"].tolist()
-    return {"torch": torch.get_rng_state(), "numpy": np_state, "python": random.getstate()}
-
-
-def set_rng_states(rng: dict) -> None:
-    torch.set_rng_state(rng["torch"])
-    np_state = dict(rng["numpy"])
-    np_state["state"] = {**np_state["state"], "key": np.asarray(np_state["state"]["key"], dtype=np.uint32)}
-    np.random.set_state(np_state)
-    random.setstate(tuple(tuple(x) if isinstance(x, list) else x for x in rng["python"]))
-
-
-def load_buffer(buffer, ckpt_dir: Path) -> None:
-    """The replay buffer of the last checkpoint (or of the one before, mid-swap)."""
-    for name in ("buffer", "buffer.old"):
-        if (ckpt_dir / name).exists():
-            buffer.loads(ckpt_dir / name)
-            return
-    raise SystemExit(f"pamrun: no replay buffer in {ckpt_dir}: cannot resume")
-
-
-def truncate_after(out: Path, ckpt_dir: Path, episodes: int) -> None:
-    """Forget what was logged after the last checkpoint: those episodes will be run again."""
-    path = out / "episodes.csv"
-    if path.exists():
-        rows = list(csv.DictReader(path.open()))
-        kept = [r for r in rows if int(r["episode"]) <= episodes]
-        with path.open("w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=CSV_FIELDS)
-            w.writeheader()
-            w.writerows(kept)
-    for agent in ckpt_dir.glob("agent_ep*.pt"):
-        if int(agent.name.split("_")[1][2:]) > episodes:
-            agent.unlink()
-
-
-def scan_saved(ckpt_dir: Path) -> list[tuple[float, Path]]:
-    """Threshold-saved agents already on disk, best first."""
-    found = [(torch.load(p, weights_only=True)["meta"]["reward"], p) for p in ckpt_dir.glob("agent_ep*.pt")]
-    return sorted(found, key=lambda t: -t[0])
-
-
 def load_run_config(out: Path) -> Config:
     path = out / "pamrun_config.yaml"
     if not (out / "checkpoints" / "last.pt").exists() or not path.exists():
@@ -458,25 +389,8 @@ def load_run_config(out: Path) -> Config:
     return to_object(OmegaConf.merge(OmegaConf.structured(Config), saved))
 
 
-def git_commit() -> str | None:
-    try:
-        return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True,
-                              cwd=Path(__file__).parent).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return None
-
-
-def package_versions() -> dict[str, str]:
-    from importlib.metadata import version
-
-    return {name: version(name) for name in ("pamrun", "torch", "torchrl", "tensordict", "mujoco", "gymnasium",
-                                             "numpy", "hydra-core")}
-
-
 def plot_training(dcfg: DictConfig) -> None:
     """``pamrun plot training dir=<run dir>``: redraw training.png from episodes.csv."""
-    from pamrun import plots
-
     run = Path(dcfg.dir)
     if not (run / "episodes.csv").exists():
         raise SystemExit(f"pamrun: no episodes.csv in {run}")
