@@ -147,7 +147,10 @@ class Learner:
         self.critic_opt = torch.optim.Adam(critic_params, lr=cfg.critic_lr)
         self.actor_opt = torch.optim.Adam(actor_params, lr=cfg.actor_lr)
         self.updates = 0
-        self.last_losses: tuple[float, float] = (math.nan, math.nan)
+        # The last losses, for logging; the actor's is set only on actor updates (TD3: every 2nd),
+        # so a run resumed between two of them has none yet.
+        self._actor_loss: torch.Tensor | None = None
+        self._critic_loss: torch.Tensor | None = None
 
     def update(self, sample) -> None:
         # Critic and actor losses separately (as TorchRL's sota scripts): computing only what
@@ -169,8 +172,8 @@ class Learner:
         self._critic_loss = critic_loss
 
     def losses(self) -> tuple[float, float]:
-        """The last (actor, critic) losses, for logging."""
-        return self._actor_loss.item(), self._critic_loss.item()
+        """The last (actor, critic) losses, for logging (nan where there is none yet)."""
+        return tuple(math.nan if t is None else t.item() for t in (self._actor_loss, self._critic_loss))
 
     def q0(self, observations: torch.Tensor) -> list[float]:
         """Q(s, pi(s)) of each observation: the thesis' Q0 curve at episode starts (Fig. 10.24)."""

@@ -232,40 +232,91 @@ def drop_agents_after(ckpt_dir: Path, episodes: int) -> None:
 def save_last(ckpt_dir: Path, cfg, learner, buffer, counters: dict) -> None:
     """Everything a resume needs, and the final actor as an agent (``pamrun eval`` reads it).
 
-    The buffer goes first, through a directory swap, then ``last.pt`` atomically, so a
-    crash at any moment leaves a loadable pair. Plain data only: loadable with
+    The replay buffer goes first, into its own ``buffer-<frames>/`` folder; then ``last.pt``,
+    atomically, naming that folder with the size and CRC-32 of each of its files and the
+    buffer's length; then older buffer folders go. A crash at any moment leaves a
+    ``last.pt`` whose buffer is complete on disk. Plain data only: loadable with
     ``weights_only=True``."""
-    import os
     import shutil
 
     from pamrun.runio import atomic_save
 
-    tmp, live, old = ckpt_dir / "buffer.tmp", ckpt_dir / "buffer", ckpt_dir / "buffer.old"
+    name = f"buffer-{counters['frames']:010d}"
+    tmp = ckpt_dir / (name + ".tmp")
     shutil.rmtree(tmp, ignore_errors=True)
     buffer.dumps(tmp)
-    shutil.rmtree(old, ignore_errors=True)
-    if live.exists():
-        os.replace(live, old)
-    os.replace(tmp, live)
-    shutil.rmtree(old, ignore_errors=True)
+    shutil.rmtree(ckpt_dir / name, ignore_errors=True)
+    tmp.rename(ckpt_dir / name)
     actor = agent_record(learner.actor.module.state_dict(), cfg,
                          {"frames": counters["frames"], "episode": counters["episodes"]})
-    atomic_save({**actor, **learner.state_dict(), "counters": dict(counters), "rng": rng_states()}, ckpt_dir / LAST)
+    atomic_save({**actor, **learner.state_dict(), "counters": dict(counters), "rng": rng_states(),
+                 "buffer": {"dir": name, "length": len(buffer), "files": file_fingerprints(ckpt_dir / name)}},
+                ckpt_dir / LAST)
+    for old in ckpt_dir.glob("buffer*"):
+        if old.name != name:
+            shutil.rmtree(old, ignore_errors=True)
+
+
+def file_fingerprints(folder: Path) -> dict[str, list[int]]:
+    """Relative path -> [size, CRC-32] of every file below ``folder``."""
+    import zlib
+
+    out = {}
+    for path in sorted(p for p in folder.rglob("*") if p.is_file()):
+        crc = 0
+        with path.open("rb") as fh:
+            while chunk := fh.read(1 << 22):
+                crc = zlib.crc32(chunk, crc)
+        out[str(path.relative_to(folder))] = [path.stat().st_size, crc]
+    return out
 
 
 def load_last(ckpt_dir: Path, learner, buffer) -> dict:
-    """Restore the learner, the replay buffer and the RNG states; return the counters."""
+    """Restore the learner, the replay buffer and the RNG states; return the counters.
+
+    Every piece is checked first: ``last.pt`` must load, and each buffer file must have the
+    size and checksum the checkpoint recorded, so a resume never trains on a truncated or
+    zero-filled buffer. A failure raises :class:`CheckpointError` naming the file."""
+    import warnings
+
     import torch
 
-    state = torch.load(ckpt_dir / LAST, weights_only=True)
-    counters = dict(state["counters"])
-    learner.load_state_dict(state, counters["updates"])
+    last = ckpt_dir / LAST
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            state = torch.load(last, map_location="cpu", weights_only=True)
+        counters = dict(state["counters"])
+        learner.load_state_dict(state, counters["updates"])
+    except Exception as err:  # truncated, not a torch file, or not pamrun's resume state
+        first = (str(err).strip().splitlines() or [""])[0][:120]
+        raise CheckpointError(last, f"unreadable resume state ({type(err).__name__}: {first})") from None
     set_rng_states(state["rng"])
-    for name in ("buffer", "buffer.old"):  # the one before, if a crash came mid-swap
-        if (ckpt_dir / name).exists():
-            buffer.loads(ckpt_dir / name)
-            return counters
-    raise SystemExit(f"pamrun: no replay buffer in {ckpt_dir}: cannot resume")
+    record = state.get("buffer")
+    if record is None:  # written by pamrun before buffer fingerprints: no check possible
+        folder = next((ckpt_dir / n for n in ("buffer", "buffer.old") if (ckpt_dir / n).exists()), None)
+        if folder is None:
+            raise CheckpointError(ckpt_dir / "buffer", "no replay buffer beside last.pt")
+    else:
+        folder = ckpt_dir / record["dir"]
+        found = file_fingerprints(folder) if folder.is_dir() else {}
+        for rel, (size, crc) in record["files"].items():
+            if rel not in found:
+                raise CheckpointError(folder / rel, "replay buffer file missing")
+            if found[rel][0] != size:
+                raise CheckpointError(folder / rel, f"replay buffer file truncated or grown: {found[rel][0]} bytes, "
+                                                    f"the checkpoint wrote {size}")
+            if found[rel][1] != crc:
+                raise CheckpointError(folder / rel, "replay buffer file changed since the checkpoint (checksum)")
+    try:
+        buffer.loads(folder)
+    except Exception as err:
+        first = (str(err).strip().splitlines() or [""])[0][:120]
+        raise CheckpointError(folder, f"replay buffer unreadable ({type(err).__name__}: {first})") from None
+    if record is not None and len(buffer) != record["length"]:
+        raise CheckpointError(folder, f"replay buffer holds {len(buffer)} transitions, "
+                                      f"the checkpoint {record['length']}")
+    return counters
 
 
 def rng_states() -> dict:

@@ -14,6 +14,7 @@ import importlib
 import logging
 import os
 import sys
+from pathlib import Path
 
 from typing import Any
 
@@ -179,6 +180,19 @@ def sweep_args(args: list[str]) -> list[str]:
 
 
 
+def _check_writable(run_dir: str | None) -> None:
+    """The run directory (or the nearest folder that exists above it) must take new files."""
+    if not run_dir:
+        return
+    path = Path(run_dir).resolve()
+    while not path.exists():
+        path = path.parent
+    if not path.is_dir():
+        raise ConfigError("hydra.run.dir", f"{path} is a file, not a folder")
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise ConfigError("hydra.run.dir", f"{path} is not writable")
+
+
 class ValidateConfig(Callback):
     """Hydra callback (``conf/config.yaml``): validate values before Hydra creates the run directory."""
 
@@ -195,6 +209,7 @@ class ValidateConfig(Callback):
 def _validate_or_exit(config: DictConfig) -> None:
     try:
         validate(config)
+        _check_writable(OmegaConf.select(config, "hydra.run.dir", default=None))
         name = OmegaConf.select(config, "hydra.job.name", default="").replace("_", " ")
         if name in COMMANDS:
             check = getattr(importlib.import_module(COMMANDS[name][0]), "check_config", None)

@@ -305,5 +305,5 @@ class PamWalkerEnv(gym.Env):
             "contraction_pct": self.drive.contraction_pct.copy(),
             "foot_force_n": foot_force_n,
             "fell": bool(fell),
-            "physics_error": bool(physics_error),
+            "physics_error": np.bool_(physics_error),  # numpy: TorchRL's info reader needs a dtype
         }

@@ -36,8 +36,8 @@ from pamrun.checkpoints import (ENV_SECTIONS, Agent, CheckpointError, check_fits
 from pamrun.config import RANK_METRICS  # aggregates an agent can be ranked by (``eval.rank_by``)
 
 LEADERBOARD_FIELDS = ("rank", "agent", "walk_test", "walk_pass_rate", "distance_mean", "distance_std", "distance_min",
-                      "return_mean", "return_std", "duration_mean", "duration_std", "fall_rate", "max_abs_y_mean",
-                      "max_abs_y_max", "speed_mean", "speed_std", "pressure_change_mean", "pressure_change_std",
+                      "return_mean", "return_std", "duration_mean", "duration_std", "fall_rate", "physics_error_rate",
+                      "max_abs_y_mean", "max_abs_y_max", "speed_mean", "speed_std", "pressure_change_mean", "pressure_change_std",
                       "train_episode", "train_reward", "path")
 
 
@@ -81,7 +81,7 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
     command = regulator.target_pressure_kpa(drive.voltage_v)
     steps = {k: [] for k in ("x_m", "y_m", "z_m", "joint_angle_rad", "pressure_kpa", "action")}
     angles = env.observation_structure["joint_angle"]
-    total, change, max_y, fell = 0.0, 0.0, 0.0, False
+    total, change, max_y, fell, physics_error = 0.0, 0.0, 0.0, False, False
     if frame_sink:
         frame_sink(env.render())
     while True:
@@ -92,6 +92,7 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
         change += float(np.abs(new_command - command).mean())
         command = new_command
         max_y = max(max_y, abs(float(info["y"])))
+        physics_error |= bool(info["physics_error"])
         for key, value in (("x_m", info["x"]), ("y_m", info["y"]), ("z_m", info["z"]),
                            ("joint_angle_rad", obs[angles]), ("pressure_kpa", info["pressure_kpa"].ravel()),
                            ("action", action)):
@@ -110,6 +111,7 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
         "distance_m": distance,
         "duration_s": duration,
         "fell": fell,
+        "physics_error": physics_error,
         "max_abs_y_m": max_y,
         "speed_m_s": distance / duration,
         "pressure_change_kpa": change / n,
@@ -193,9 +195,10 @@ def evaluate_agents(agents: list[Agent], kwargs: list[dict], episodes: int, seed
 
 
 def walk_passed(episode: dict, walk_duration_s: float, walk_lateral_m: float) -> bool:
-    """Thesis §10.3: walked the whole time without falling and inside the lateral band."""
-    return (not episode["fell"] and episode["duration_s"] >= walk_duration_s - 1e-9
-            and episode["max_abs_y_m"] <= walk_lateral_m)
+    """Thesis §10.3: walked the whole time without falling and inside the lateral band (and
+    without a physics blow-up, whose distances mean nothing)."""
+    return (not episode["fell"] and not episode.get("physics_error", False)
+            and episode["duration_s"] >= walk_duration_s - 1e-9 and episode["max_abs_y_m"] <= walk_lateral_m)
 
 
 # Per-episode metric -> name of its aggregates (<name>_mean, <name>_std).
@@ -208,7 +211,8 @@ def aggregate(episodes: list[dict], walk_duration_s: float, walk_lateral_m: floa
     passed = [walk_passed(e, walk_duration_s, walk_lateral_m) for e in episodes]
     out: dict[str, Any] = {"episodes": len(episodes), "walk_test": all(passed),
                            "walk_pass_rate": float(np.mean(passed)),
-                           "fall_rate": float(np.mean([e["fell"] for e in episodes]))}
+                           "fall_rate": float(np.mean([e["fell"] for e in episodes])),
+                           "physics_error_rate": float(np.mean([e.get("physics_error", False) for e in episodes]))}
     for key, name in AGGREGATED.items():
         values = np.array([e[key] for e in episodes], dtype=float)
         out[f"{name}_mean"], out[f"{name}_std"] = float(values.mean()), float(values.std())
@@ -221,9 +225,10 @@ def aggregate(episodes: list[dict], walk_duration_s: float, walk_lateral_m: floa
 
 def rank(rows: list[dict], rank_by: list[str]) -> list[dict]:
     """Rows sorted best first by ``rank_by`` (descending; '-name' ascending), ties by label.
-    Each row gets its 1-based ``rank``; a NaN ranks last."""
+    Each row gets its 1-based ``rank``; a NaN ranks last, and so does an agent any of whose
+    episodes blew up in the physics (its numbers mean nothing)."""
     def key(row: dict) -> tuple:
-        out = []
+        out = [row.get("physics_error_rate", 0.0) > 0]
         for name in rank_by:
             value = float(row[name.lstrip("-")])
             value = value if name.startswith("-") else -value
@@ -297,13 +302,21 @@ def record_video(agent: Agent, kwargs: dict, seed: int, width: int, height: int,
 
 
 def check_config(config) -> None:
-    """``ckpt`` must name at least one checkpoint file (run by pamrun.cli before any directory exists)."""
+    """``ckpt`` must name at least one usable checkpoint (run by pamrun.cli before any directory exists)."""
     from pamrun.config import ConfigError
 
     try:
-        find_checkpoints(config.ckpt, config.eval.include_last)
+        paths = find_checkpoints(config.ckpt, config.eval.include_last)
     except CheckpointError as err:
         raise ConfigError("ckpt", str(err)) from None
+    errors = []
+    for path in paths:  # at least one must load, or the evaluation would write only its failure
+        try:
+            load_agent(path)
+            return
+        except CheckpointError as err:
+            errors.append(err)
+    raise ConfigError("ckpt", f"none of its {len(paths)} checkpoint(s) is usable; the first: {errors[0]}")
 
 
 def load_agents(spec: str, cfg) -> tuple[list[Agent], list[dict], list[dict]]:

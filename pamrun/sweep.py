@@ -100,7 +100,13 @@ def job(dcfg: DictConfig) -> dict:
     except KeyboardInterrupt:
         record["status"] = "interrupted"
         raise
-    except BaseException as err:  # SystemExit too: a bad value or a crash fails this job alone
+    except SystemExit as err:
+        if err.code in (130, 143):  # its training was stopped by a signal, after a final checkpoint
+            record["status"] = "interrupted" if err.code == 130 else "terminated"
+            raise
+        record.update(status="failed", error=f"{type(err).__name__}: {err}")
+        (out / "error.txt").write_text(traceback.format_exc())
+    except BaseException as err:  # a bad value or a crash fails this job alone
         record.update(status="failed", error=f"{type(err).__name__}: {err}")
         (out / "error.txt").write_text(traceback.format_exc())
     finally:
@@ -345,6 +351,10 @@ class SummarizeAtEnd(Callback):
         sweep_dir = Path(str(config.hydra.sweep.dir))
         result = summarize(sweep_dir, list(config.sweep.group_exclude), config.sweep.metric, config.sweep.direction)
         print_summary(result, sweep_dir)
+        failed = [j for j in collect_jobs(sweep_dir) if j.get("status") != "done"]
+        if failed:  # the others finished; the sweep still says it did not all go through
+            raise SystemExit(f"pamrun: {len(failed)} sweep job(s) did not finish: "
+                             + ", ".join(f"{j.get('job')} ({j.get('status')})" for j in failed))
 
 
 def summarize_command(dcfg: DictConfig) -> None:

@@ -17,6 +17,7 @@ import functools
 import math
 import os
 import random
+import signal
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -31,8 +32,11 @@ from pamrun.config import Config, to_object, upgrade_saved_config
 from pamrun.runio import Progress, git_commit, package_versions, read_json, run_dir, write_json
 from pamrun.runtime import usable_cores
 
+# What a training writes in its directory besides .hydra/ and pamrun_config.yaml.
+LEFTOVERS = ("episodes.csv", "run.json", "tensorboard", "training.png")
 NEW_RUN = {"frames": 0, "episodes": 0, "updates": 0, "wall_time_s": 0.0}  # a run's counters at its start
-CSV_FIELDS = ("episode", "frames", "reward", "avg_reward", "q0", "length", "distance_m", "wall_time_s")
+CSV_FIELDS = ("episode", "frames", "reward", "avg_reward", "q0", "length", "distance_m", "wall_time_s",
+              "physics_error")
 
 
 def make_env(cfg: Config):
@@ -50,7 +54,7 @@ def make_env(cfg: Config):
         "pamrun/PamWalker-v0",
         body=asdict(cfg.body), muscle=asdict(cfg.muscle), reward=asdict(cfg.reward), env=asdict(cfg.env),
     ))
-    env.set_info_dict_reader(default_info_dict_reader(["distance"]))
+    env.set_info_dict_reader(default_info_dict_reader(["distance", "physics_error"]))
     return env
 
 
@@ -76,12 +80,12 @@ class EpisodeLog:
 
     def __init__(self, out: Path, window: int, writer, episodes: int = 0):
         self.path = out / "episodes.csv"
-        new = not self.path.exists()
-        history = [] if new else [float(r["reward"]) for r in csv.DictReader(self.path.open())]
+        rows = self.read(self.path) if self.path.exists() else []
+        history = [float(r["reward"]) for r in rows]
+        self.flagged = [int(r.get("physics_error") or 0) for r in rows]
+        self.write_rows(self.path, rows)  # today's header, whatever version wrote the file
         self.file = self.path.open("a", newline="")
         self.csv = csv.DictWriter(self.file, fieldnames=CSV_FIELDS)
-        if new:
-            self.csv.writeheader()
         self.rewards: list[float] = history
         self.window = window
         self.writer = writer
@@ -92,13 +96,15 @@ class EpisodeLog:
         """One finished episode: its row (numbered from the run's count) in the CSV and TensorBoard."""
         self.episodes += 1
         self.rewards.append(episode["reward"])
+        self.flagged.append(int(episode["physics_error"]))
         row = {"episode": self.episodes, "frames": frames, "reward": episode["reward"],
                "avg_reward": float(np.mean(self.rewards[-self.window:])), "q0": q0, "length": episode["length"],
-               "distance_m": episode["distance_m"], "wall_time_s": round(wall_time_s, 3)}
+               "distance_m": episode["distance_m"], "wall_time_s": round(wall_time_s, 3),
+               "physics_error": int(episode["physics_error"])}
         self.best = max(self.best, row["reward"])
         self.csv.writerow({k: (round(v, 5) if isinstance(v, float) else v) for k, v in row.items()})
         self.file.flush()  # a killed process loses no finished episode
-        for key in ("reward", "avg_reward", "q0", "length", "distance_m"):
+        for key in ("reward", "avg_reward", "q0", "length", "distance_m", "physics_error"):
             self.writer.add_scalar(f"episode/{key}", row[key], self.episodes)
         return row
 
@@ -125,16 +131,35 @@ class EpisodeLog:
         self.file.close()
 
     @staticmethod
-    def truncate(out: Path, episodes: int) -> None:
+    def read(path: Path) -> list[dict]:
+        """The rows of an episodes.csv; a damaged file stops with one line naming it."""
+        try:
+            rows = list(csv.DictReader(path.open()))
+            for r in rows:
+                int(r["episode"]), float(r["reward"])
+            return rows
+        except (KeyError, ValueError, TypeError, csv.Error, UnicodeDecodeError) as err:
+            raise SystemExit(f"pamrun: {path}: not a pamrun episode log ({type(err).__name__}: {err}); restore it, "
+                             "or start the run again in a new directory.") from None
+
+    @staticmethod
+    def write_rows(path: Path, rows: list[dict]) -> None:
+        from pamrun.runio import atomic_write
+
+        def write(tmp: Path) -> None:
+            with tmp.open("w", newline="") as fh:
+                w = csv.DictWriter(fh, fieldnames=CSV_FIELDS, extrasaction="ignore")
+                w.writeheader()
+                w.writerows({**{"physics_error": 0}, **r} for r in rows)
+
+        atomic_write(path, write)
+
+    @classmethod
+    def truncate(cls, out: Path, episodes: int) -> None:
         """Forget what was logged after the last checkpoint: those episodes will be run again."""
         path = out / "episodes.csv"
         if path.exists():
-            rows = list(csv.DictReader(path.open()))
-            kept = [r for r in rows if int(r["episode"]) <= episodes]
-            with path.open("w", newline="") as fh:
-                w = csv.DictWriter(fh, fieldnames=CSV_FIELDS)
-                w.writeheader()
-                w.writerows(kept)
+            cls.write_rows(path, [r for r in cls.read(path) if int(r["episode"]) <= episodes])
 
 
 def train(dcfg: DictConfig) -> None:
@@ -168,6 +193,7 @@ def train(dcfg: DictConfig) -> None:
     update_budget, status = 0.0, None
     console.print(header_table(cfg, out))
     progress = Progress(console, cfg.train.max_frames, frames)
+    previous_sigterm = signal.signal(signal.SIGTERM, _terminate)
     try:
         for batch in collector:
             batch = batch.reshape(-1)
@@ -189,21 +215,45 @@ def train(dcfg: DictConfig) -> None:
                 break
     except KeyboardInterrupt:
         status = "interrupted"
+    except Terminated:
+        status = "terminated"
     except Exception:
         status = "failed"
         raise
     finally:
+        signal.signal(signal.SIGTERM, previous_sigterm)
         progress.stop()
         collector.shutdown()
         close_run(out, cfg, learner, buffer, run_counters(frames, log, learner, clock), log, run_info,
                   status or "max_frames", saved)
     plots.training_curves(out / "episodes.csv", out / "training.png")
     console.print(summary_table(run_info, log, saved, out))
+    if status in STOPPED_EXIT:
+        console.print(f"Stopped ({status}) with a final checkpoint. Continue with: pamrun train resume={out}",
+                      soft_wrap=True)
+        raise SystemExit(STOPPED_EXIT[status])
+    if status == "physics_unstable":
+        console.print(f"[red]Stopped: the physics blew up in {sum(log.flagged[-100:])} of the last "
+                      f"{len(log.flagged[-100:])} episodes.[/red] The robot is unstable in MuJoCo at this setting: "
+                      "check body.mass_kg and body.height_m, the muscles' strength (muscle.size, muscle.count, "
+                      "muscle.max_pressure_kpa) against them, and env.physics_dt_s.")
+        raise SystemExit(1)
 
 
 def resume(out: Path, learner, buffer) -> dict:
-    """Learner, buffer and RNG states of the last checkpoint; forget what came after it."""
-    counters = checkpoints.load_last(out / "checkpoints", learner, buffer)
+    """Learner, buffer and RNG states of the last checkpoint; forget what came after it.
+
+    Any piece that is missing or damaged stops the resume with one line naming the file."""
+    try:
+        counters = checkpoints.load_last(out / "checkpoints", learner, buffer)
+    except checkpoints.CheckpointError as err:
+        raise SystemExit(f"pamrun: cannot resume {out}: {err}. Restore the file, or start the run again "
+                         "in a new directory.") from None
+    log = out / "episodes.csv"
+    rows = EpisodeLog.read(log) if log.exists() else []
+    if len([r for r in rows if int(r["episode"]) <= counters["episodes"]]) < counters["episodes"]:
+        raise SystemExit(f"pamrun: cannot resume {out}: {log} holds {len(rows)} episodes, the checkpoint "
+                         f"{counters['episodes']}: restore it, or start the run again in a new directory.")
     EpisodeLog.truncate(out, counters["episodes"])
     checkpoints.drop_agents_after(out / "checkpoints", counters["episodes"])
     return counters
@@ -211,11 +261,12 @@ def resume(out: Path, learner, buffer) -> dict:
 
 def record_episodes(finished: list[dict], cfg: Config, learner, log: "EpisodeLog", frames: int, wall_time_s: float,
                     saved: list, ckpt_dir: Path) -> list:
-    """Log the episodes a batch finished (with Q0) and save the agents that reach the threshold."""
+    """Log the episodes a batch finished (with Q0) and save the agents that reach the threshold
+    (never one from an episode whose physics blew up)."""
     q0s = learner.q0(torch.stack([e["obs0"] for e in finished])) if finished else []
     for episode, q0 in zip(finished, q0s):
         row = log.add(episode, q0, frames, wall_time_s)
-        if episode["reward"] >= cfg.train.save_threshold:
+        if episode["reward"] >= cfg.train.save_threshold and not episode["physics_error"]:
             saved = checkpoints.save_agent(ckpt_dir, learner.actor.module.state_dict(), row, cfg, saved,
                                            cfg.train.keep_saved)
     return saved
@@ -235,18 +286,45 @@ def run_counters(frames: int, log: "EpisodeLog", learner, clock: "Clock") -> dic
     return {"frames": frames, "episodes": log.episodes, "updates": learner.updates, "wall_time_s": clock.seconds()}
 
 
+def check_config(config) -> None:
+    """``resume=<dir>`` must name a run with a checkpoint (run by pamrun.cli before any directory exists)."""
+    from pamrun.config import ConfigError
+
+    if config.resume and not (Path(config.resume) / "checkpoints" / checkpoints.LAST).exists():
+        raise ConfigError("resume", f"{config.resume}: no training run to resume there (no checkpoints/last.pt)")
+
+
 def open_run(cfg: Config, out: Path, console) -> tuple[Config, Path, bool]:
-    """The config to run with (a resume's own), having refused to overwrite another run."""
-    resuming = bool(cfg.resume)
-    if resuming:
+    """The config to run with and whether it resumes.
+
+    ``resume=<dir>``, or the same command again in a directory whose run has a checkpoint,
+    continues that run with its own config; another command there is refused. Files of a
+    run killed before its first checkpoint are moved aside (``aborted-<time>/``) and the
+    run starts clean, saying so."""
+    text = OmegaConf.to_yaml(OmegaConf.structured(cfg))
+    saved = out / "pamrun_config.yaml"
+    has_checkpoint = (out / "checkpoints" / checkpoints.LAST).exists()
+    if not cfg.resume and has_checkpoint:
+        if not saved.exists() or saved.read_text() != text:
+            raise SystemExit(f"pamrun: {out} already holds another training run; continue it with resume={out} "
+                             "or choose another hydra.run.dir")
+        console.print(f"{out} holds this run's last checkpoint: continuing it (same command).")
+    if cfg.resume or has_checkpoint:
         cfg = load_run_config(out)
         console.print(f"Resuming {out} with its own config ({cfg.algo.name}); command-line values are ignored.")
-    else:
-        if (out / "checkpoints" / checkpoints.LAST).exists():
-            raise SystemExit(f"pamrun: {out} already holds a training run; continue it with resume={out}")
-        (out / "pamrun_config.yaml").write_text(OmegaConf.to_yaml(OmegaConf.structured(cfg)))
+        return cfg, out, True
+    leftovers = [p for p in out.iterdir() if p.name in LEFTOVERS or p.name.startswith("buffer")] + \
+        [p for p in (out / "checkpoints").glob("*")] if out.exists() else []
+    if leftovers:
+        aside = out / f"aborted-{time.strftime('%Y%m%d-%H%M%S')}"
+        aside.mkdir()
+        for path in leftovers:
+            path.rename(aside / (("checkpoints-" if path.parent.name == "checkpoints" else "") + path.name))
+        console.print(f"[yellow]A run killed before its first checkpoint left files here: moved to {aside}; "
+                      "starting clean.[/yellow]")
+    saved.write_text(text)
     (out / "checkpoints").mkdir(exist_ok=True)
-    return cfg, out, resuming
+    return cfg, out, False
 
 
 def action_spec(cfg: Config):
@@ -261,6 +339,18 @@ def make_buffer(cfg: Config):
     from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
     return TensorDictReplayBuffer(storage=LazyTensorStorage(cfg.train.buffer_size), batch_size=cfg.algo.batch_size)
+
+
+class Terminated(Exception):
+    """SIGTERM (a scheduler's time limit, ``kill``): stop like Ctrl-C, with a final checkpoint."""
+
+
+def _terminate(signum, frame) -> None:
+    raise Terminated()
+
+
+# Exit codes of a run stopped by a signal (after its final checkpoint), as a shell reports them.
+STOPPED_EXIT = {"interrupted": 130, "terminated": 143}
 
 
 class Clock:
@@ -280,16 +370,20 @@ class EpisodeTracker:
         self.running: dict[int, dict] = {}
 
     def add(self, batch) -> list[dict]:
-        """The episodes this (flat) batch finishes: reward, length, first observation, distance."""
+        """The episodes this (flat) batch finishes: reward, length, first observation, distance, and
+        whether the physics blew up in it (``physics_error``)."""
         finished = []
         traj = batch["collector", "traj_ids"].tolist()
         reward = batch["next", "reward"].reshape(-1).tolist()
         done = batch["next", "done"].reshape(-1).tolist()
         distance = batch["next", "distance"].reshape(-1).tolist()
+        error = batch["next", "physics_error"].reshape(-1).tolist()
         for i in range(len(traj)):
-            ep = self.running.setdefault(traj[i], {"reward": 0.0, "length": 0, "obs0": batch["observation"][i]})
+            ep = self.running.setdefault(traj[i], {"reward": 0.0, "length": 0, "obs0": batch["observation"][i],
+                                                   "physics_error": False})
             ep["reward"] += reward[i]
             ep["length"] += 1
+            ep["physics_error"] |= bool(error[i])
             if done[i]:
                 ep["distance_m"] = distance[i]
                 finished.append(self.running.pop(traj[i]))
@@ -299,6 +393,9 @@ class EpisodeTracker:
 def stop_reason(cfg: Config, log: "EpisodeLog", elapsed_s: float) -> str | None:
     """Why training stops now (``train.max_*`` or the target average), or None."""
     t = cfg.train
+    recent = log.flagged[-100:]
+    if len(recent) >= 20 and sum(recent) > len(recent) / 2:
+        return "physics_unstable"
     if log.episodes >= t.max_episodes:
         return "max_episodes"
     if t.max_minutes and elapsed_s > 60 * t.max_minutes:
@@ -332,7 +429,7 @@ def close_run(out: Path, cfg: Config, learner, buffer, counters: dict, log: "Epi
     info.update(status=status, end=time.strftime("%Y-%m-%dT%H:%M:%S"), frames=counters["frames"],
                 episodes=counters["episodes"], wall_time_s=round(counters["wall_time_s"], 3),
                 updates=counters["updates"], best_reward=log.best if counters["episodes"] else None,
-                saved_agents=[str(p.name) for _, p in saved])
+                saved_agents=[str(p.name) for _, p in saved], physics_errors=sum(log.flagged))
     write_json(out / "run.json", info)
 
 
@@ -371,6 +468,7 @@ def summary_table(run_info: dict, log: EpisodeLog, saved: list, out: Path):
         ("final average reward", f"{np.mean(rewards[-log.window:]):.2f} (last {min(len(rewards), log.window)})"
          if rewards else "none"),
         ("saved agents", f"{len(saved)}" + (f", best {saved[0][1].name}" if saved else "")),
+        ("physics errors", f"{sum(log.flagged)} episode(s) flagged (never saved)" if sum(log.flagged) else "none"),
         ("episodes", str(out / "episodes.csv")),
         ("curves", str(out / "training.png")),
         ("checkpoints", str(out / "checkpoints")),

@@ -249,8 +249,9 @@ def test_only_unreadable_checkpoints_is_an_error(tmp_path):
     folder.mkdir()
     (folder / "agent_ep000001_r1.0.pt").write_bytes(b"not a zip file")
     proc = run_pamrun("eval", f"ckpt={folder}", f"hydra.run.dir={tmp_path / 'ev'}")
-    assert proc.returncode != 0 and "no usable checkpoint" in proc.stderr
-    assert "agent_ep000001_r1.0.pt" in proc.stdout
+    assert proc.returncode != 0 and "ckpt: none of its 1 checkpoint(s) is usable" in proc.stderr
+    assert "agent_ep000001_r1.0.pt" in proc.stderr and "truncated or corrupt" in proc.stderr
+    assert not (tmp_path / "ev").exists()  # refused before anything is written
 
 
 def test_find_checkpoints_in_a_folder_of_runs(trained_run, tmp_path):

@@ -134,7 +134,8 @@ def test_summarize_on_demand(smoke_sweep, tmp_path):
 def test_a_failing_job_is_recorded_and_the_others_finish(tmp_path):
     sweep_dir = tmp_path / "fail"
     proc = run_pamrun("sweep", "-m", "body.height_m=1.8,-1", "seed=0", *TINY, f"hydra.sweep.dir={sweep_dir}")
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.returncode == 1, proc.stderr[-3000:]  # after finishing the others, it says some did not
+    assert proc.stderr.strip().splitlines()[-1] == "pamrun: 1 sweep job(s) did not finish: body.height_m=-1 (failed)"
     jobs = {j["job"]: j for j in collect_jobs(sweep_dir)}
     assert jobs["body.height_m=1.8"]["status"] == "done"
     bad = jobs["body.height_m=-1"]

@@ -16,6 +16,7 @@ The schemas live by subject: :mod:`pamrun.config.robot` (muscle, body),
 from __future__ import annotations
 
 import copy
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -143,6 +144,10 @@ def validate(cfg: DictConfig, path: str = "") -> None:
                     validate(sub, f"{path}{key}.{name}.")
     if OmegaConf.get_type(cfg) in (dict, None):
         return
+    known = {f.name for f in dataclasses.fields(OmegaConf.get_type(cfg))}
+    for key in cfg.keys():  # `+section.key=...` adds keys a dataclass does not have: a typo
+        _require(key in known, f"{path}{key}", f"unknown key; {path.rstrip('.') or 'the config'} has: "
+                                               f"{', '.join(sorted(known))}")
     try:
         OmegaConf.to_object(cfg)
     except ConfigError as err:

@@ -1,0 +1,190 @@
+"""Nothing lost, nothing silent: kills, signals, corrupt resume state, physics blow-ups, bad input.
+
+Each test provokes the fault for real (a killed process group, a truncated file, a robot
+too light to simulate) and checks what a user would see and what is left on disk.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import torch
+from torchrl.data import Bounded
+
+from pamrun import agents
+from pamrun.config import AlgoConfig
+from tests.conftest import run_pamrun
+
+SMOKE = ["train=smoke", "algo=td3", "train.init_random_frames=200", "train.updates_per_frame=0.25", "seed=4"]
+
+
+def _start(run_dir: Path, *extra: str) -> subprocess.Popen:
+    args = [sys.executable, "-m", "pamrun.cli", "train", *SMOKE, *extra, f"hydra.run.dir={run_dir}"]
+    return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)
+
+
+def _wait_for(condition, timeout_s: float = 240) -> None:
+    deadline = time.time() + timeout_s
+    while time.time() < deadline and not condition():
+        time.sleep(0.3)
+    assert condition(), "the run never got there"
+
+
+def _rows(run_dir: Path) -> list[dict]:
+    return list(csv.DictReader((run_dir / "episodes.csv").open()))
+
+
+def _continuous(run_dir: Path) -> bool:
+    episodes = [int(r["episode"]) for r in _rows(run_dir)]
+    return episodes == list(range(1, len(episodes) + 1))
+
+
+def test_kill_before_the_first_checkpoint_then_the_same_command_starts_clean(tmp_path):
+    run_dir = tmp_path / "run"
+    extra = ("train.max_frames=1400", "train.checkpoint_every_frames=100000")
+    proc = _start(run_dir, *extra)
+    _wait_for(lambda: (run_dir / "episodes.csv").exists() and len(_rows(run_dir)) >= 5)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not (run_dir / "checkpoints" / "last.pt").exists()
+    done = run_pamrun("train", *SMOKE, *extra, f"hydra.run.dir={run_dir}")
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    assert "killed before its first checkpoint" in " ".join(done.stdout.split())
+    aside = list(run_dir.glob("aborted-*"))
+    assert len(aside) == 1 and (aside[0] / "episodes.csv").exists()  # kept, not lost
+    assert _continuous(run_dir) and json.loads((run_dir / "run.json").read_text())["frames"] == 1400
+
+
+def test_sigterm_saves_a_final_checkpoint_and_the_same_command_continues(tmp_path):
+    run_dir = tmp_path / "run"
+    extra = ("train.max_frames=2000", "train.checkpoint_every_frames=100000")
+    proc = _start(run_dir, *extra)
+    _wait_for(lambda: (run_dir / "episodes.csv").exists() and len(_rows(run_dir)) >= 5)
+    os.killpg(proc.pid, signal.SIGTERM)  # a scheduler's time limit signals the whole job
+    out, _ = proc.communicate(timeout=120)
+    assert proc.returncode == 143
+    run = json.loads((run_dir / "run.json").read_text())
+    assert run["status"] == "terminated" and (run_dir / "checkpoints" / "last.pt").exists()
+    assert f"pamrun train resume={run_dir}" in out
+    stopped_at = run["episodes"]
+    done = run_pamrun("train", *SMOKE, *extra, f"hydra.run.dir={run_dir}")  # the same command again
+    assert done.returncode == 0, done.stdout[-2000:]
+    assert "continuing it (same command)" in " ".join(done.stdout.split())
+    run = json.loads((run_dir / "run.json").read_text())
+    assert run["status"] == "max_frames" and run["episodes"] > stopped_at and _continuous(run_dir)
+
+
+def test_another_command_in_a_finished_run_directory_is_refused(tmp_path):
+    run_dir = tmp_path / "run"
+    first = run_pamrun("train", *SMOKE, "train.max_frames=400", f"hydra.run.dir={run_dir}")
+    assert first.returncode == 0
+    other = run_pamrun("train", *SMOKE, "train.max_frames=400", "reward.kz=1", f"hydra.run.dir={run_dir}")
+    assert other.returncode != 0 and "already holds another training run" in other.stderr
+
+
+@pytest.fixture(scope="module")
+def stopped_run(tmp_path_factory) -> Path:
+    """A run stopped by SIGTERM after a checkpoint: the resume state the corruption tests damage."""
+    run_dir = tmp_path_factory.mktemp("faults") / "stopped"
+    proc = _start(run_dir, "train.max_frames=3000", "train.checkpoint_every_frames=400")
+    _wait_for(lambda: (run_dir / "checkpoints" / "last.pt").exists())
+    os.killpg(proc.pid, signal.SIGTERM)
+    proc.wait(timeout=120)
+    return run_dir
+
+
+def _buffer_file(run_dir: Path, name: str) -> Path:
+    return next((run_dir / "checkpoints").glob("buffer-*")) / "storage" / name
+
+
+CORRUPTIONS = {
+    "truncated buffer file": (lambda d: os.truncate(_buffer_file(d, "observation.memmap"), 1000),
+                              "observation.memmap: replay buffer file truncated"),
+    "zeroed buffer file": (lambda d: _buffer_file(d, "observation.memmap").write_bytes(
+        bytes(_buffer_file(d, "observation.memmap").stat().st_size)), "observation.memmap: replay buffer file changed"),
+    "half last.pt": (lambda d: os.truncate(d / "checkpoints" / "last.pt", (d / "checkpoints" / "last.pt").stat().st_size
+                                           // 2), "last.pt: unreadable resume state"),
+    "garbage meta.json": (lambda d: _buffer_file(d, "meta.json").write_text("garbage"), "meta.json: replay buffer"),
+    "bad episodes.csv": (lambda d: (d / "episodes.csv").write_text("foo,bar\n1,2\n"),
+                         "episodes.csv: not a pamrun episode log"),
+    "deleted episodes.csv": (lambda d: (d / "episodes.csv").unlink(), "episodes.csv holds 0 episodes"),
+    "deleted buffer": (lambda d: shutil.rmtree(next((d / "checkpoints").glob("buffer-*"))), "file missing"),
+}
+
+
+@pytest.mark.parametrize("name", list(CORRUPTIONS))
+def test_corrupt_resume_state_is_named_in_one_line(stopped_run, tmp_path, name):
+    run_dir = tmp_path / "copy"
+    shutil.copytree(stopped_run, run_dir)
+    damage, message = CORRUPTIONS[name]
+    damage(run_dir)
+    proc = run_pamrun("train", f"resume={run_dir}")
+    assert proc.returncode != 0
+    assert message in proc.stderr and str(run_dir) in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and "Traceback" not in proc.stderr
+    assert json.loads((run_dir / "run.json").read_text())["status"] == "terminated"  # nothing trained on
+
+
+def test_physics_blow_ups_are_flagged_never_saved_and_stop_the_run(tmp_path):
+    run_dir = tmp_path / "light"
+    proc = run_pamrun("train", *SMOKE, "body.mass_kg=1e-4", "train.save_threshold=-1e9", "train.max_frames=3000",
+                      f"hydra.run.dir={run_dir}")
+    assert proc.returncode == 1
+    assert "the physics blew up" in " ".join(proc.stdout.split()) and "body.mass_kg" in proc.stdout
+    rows = _rows(run_dir)
+    assert len(rows) >= 20 and all(r["physics_error"] == "1" for r in rows)
+    run = json.loads((run_dir / "run.json").read_text())
+    assert run["status"] == "physics_unstable" and run["physics_errors"] == len(rows)
+    assert list((run_dir / "checkpoints").glob("agent_*.pt")) == []
+
+
+def test_td3_resumed_between_actor_updates_logs_its_losses():
+    """Resumed at updates = 49 (TD3 updates the actor every 2nd step), the 50th update logs
+    the losses before the actor has one: nan, not a crash."""
+    spec = Bounded(-torch.ones(10), torch.ones(10), (10,))
+    learner = agents.make_learner(AlgoConfig(name="td3", actor_update_every=2), 43, 10, spec)
+    learner.updates = 49
+    from tensordict import TensorDict
+
+    n = 8
+    batch = TensorDict({"observation": torch.randn(n, 43), "action": torch.rand(n, 10) * 2 - 1,
+                        "next": {"observation": torch.randn(n, 43), "reward": torch.randn(n, 1),
+                                 "done": torch.zeros(n, 1, dtype=torch.bool),
+                                 "terminated": torch.zeros(n, 1, dtype=torch.bool)}}, [n])
+    learner.update(batch)
+    actor_loss, critic_loss = learner.losses()
+    assert learner.updates == 50 and math.isnan(actor_loss) and math.isfinite(critic_loss)
+    learner.update(batch)  # update 50: the actor's turn
+    assert all(math.isfinite(v) for v in learner.losses())
+
+
+def test_an_unknown_key_fails_even_with_plus(tmp_path):
+    proc = run_pamrun("train", "+train.max_framez=100", f"hydra.run.dir={tmp_path / 'x'}")
+    assert proc.returncode != 0 and "train.max_framez: unknown key" in proc.stderr
+    assert not (tmp_path / "x").exists()
+
+
+def test_resume_of_a_missing_directory_writes_nothing(tmp_path):
+    proc = run_pamrun("train", f"resume={tmp_path / 'nothing'}")
+    assert proc.returncode != 0 and "resume:" in proc.stderr and "no training run to resume" in proc.stderr
+    assert not (tmp_path / "nothing").exists()
+
+
+def test_a_run_directory_that_cannot_be_written_fails_in_one_line(tmp_path):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    proc = run_pamrun("train", f"hydra.run.dir={blocker / 'run'}")
+    assert proc.returncode != 0 and "hydra.run.dir" in proc.stderr and "Traceback" not in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+
