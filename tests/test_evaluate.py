@@ -250,7 +250,7 @@ def test_only_unreadable_checkpoints_is_an_error(tmp_path):
     (folder / "agent_ep000001_r1.0.pt").write_bytes(b"not a zip file")
     proc = run_pamrun("eval", f"ckpt={folder}", f"hydra.run.dir={tmp_path / 'ev'}")
     assert proc.returncode != 0 and "ckpt: none of its 1 checkpoint(s) is usable" in proc.stderr
-    assert "agent_ep000001_r1.0.pt" in proc.stderr and "truncated or corrupt" in proc.stderr
+    assert "agent_ep000001_r1.0.pt: " in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "ev").exists()  # refused before anything is written
 
 
