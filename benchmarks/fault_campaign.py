@@ -4,7 +4,7 @@
 
 Each trial starts a small training (``train=smoke``, checkpoints every 400 frames) in its
 own folder, sends SIGKILL or SIGTERM (alternating) to its process group after a random
-0.5-15 s (early kills, before the first checkpoint, included), then runs the same command
+0.5-14 s (early kills, before the first checkpoint, included), then runs the same command
 again. A trial holds when the second command exits 0 with the run finished
 (``max_frames``), episodes 1..N continuous with none duplicated, and every frame of the
 budget accounted for. Prints one row per trial and ``held N/T``; appends to
@@ -25,7 +25,7 @@ import tempfile
 import time
 from pathlib import Path
 
-COMMAND = ["train", "train=smoke", "algo=td3", "train.max_frames=1600", "train.init_random_frames=200",
+COMMAND = ["train", "train=smoke", "algo=td3", "train.max_frames=3000", "train.init_random_frames=200",
            "train.updates_per_frame=0.25", "train.checkpoint_every_frames=400", "seed=7"]
 
 
@@ -42,7 +42,7 @@ def trial(run_dir: Path, sig: signal.Signals, after_s: float) -> dict:
     run = json.loads((run_dir / "run.json").read_text()) if (run_dir / "run.json").exists() else {}
     rows = list(csv.DictReader((run_dir / "episodes.csv").open())) if (run_dir / "episodes.csv").exists() else []
     episodes = [int(r["episode"]) for r in rows]
-    held = (again.returncode == 0 and run.get("status") == "max_frames" and run.get("frames") == 1600
+    held = (again.returncode == 0 and run.get("status") == "max_frames" and run.get("frames") == 3000
             and episodes == list(range(1, len(episodes) + 1)) and run.get("episodes") == len(episodes))
     return {"signal": sig.name, "after_s": round(after_s, 2), "first_rc": proc.returncode,
             "finished_before_kill": finished_first, "checkpoint_before_kill": had_checkpoint,
@@ -60,7 +60,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(args.trials):
             sig = signal.SIGKILL if k % 2 == 0 else signal.SIGTERM
-            row = trial(Path(tmp) / f"t{k:02d}", sig, rng.uniform(0.5, 15.0))
+            row = trial(Path(tmp) / f"t{k:02d}", sig, rng.uniform(0.5, 14.0))
             rows.append(row)
             print(f"{k + 1:2d} {row['signal']:<7} at {row['after_s']:5.2f} s  checkpoint before: "
                   f"{'yes' if row['checkpoint_before_kill'] else 'no ':<3}  first rc {row['first_rc']:>4}  "

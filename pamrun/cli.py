@@ -167,6 +167,7 @@ def sweep_args(args: list[str]) -> list[str]:
     from pamrun.sweep import RUNTIME_KEYS, swept_keys, sweep_dir_for
 
     informational = {"--cfg", "-c", "--info", "-i", "--help", "-h", "--hydra-help"} & set(args)
+    check_group_options(args)
     if not informational and not {"-m", "--multirun"} & set(args):
         args = ["-m", *args]
     if not any(a.startswith("hydra.sweep.dir=") for a in args):
@@ -178,6 +179,25 @@ def sweep_args(args: list[str]) -> list[str]:
     fixed = swept_keys(args)[1] + list(RUNTIME_KEYS)
     return [*args, f"hydra.job.config.override_dirname.exclude_keys=[{','.join(fixed)}]"]
 
+
+
+def check_group_options(args: list[str]) -> None:
+    """Every option named for a config group (``algo=ppo,td3``) must exist, before Hydra
+    creates a sweep folder for jobs that could never compose."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from pamrun.sweep import task_overrides
+
+    for override in OverridesParser.create().parse_overrides(task_overrides(args)):
+        group = override.key_or_group
+        if "." in group or not (CONF_DIR / group).is_dir():
+            continue
+        values = override.sweep_string_iterator() if override.is_sweep_override() else [override.value()]
+        known = sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
+        for value in values:
+            if str(value) not in known:
+                raise SystemExit(f"pamrun: invalid configuration: {group}: no option {value!r}; "
+                                 f"known: {', '.join(known)}")
 
 
 def _check_writable(run_dir: str | None) -> None:

@@ -66,16 +66,17 @@ def test_kill_before_the_first_checkpoint_then_the_same_command_starts_clean(tmp
     assert _continuous(run_dir) and json.loads((run_dir / "run.json").read_text())["frames"] == 1400
 
 
-def test_sigterm_saves_a_final_checkpoint_and_the_same_command_continues(tmp_path):
+@pytest.mark.parametrize("sig, rc, status", [(signal.SIGTERM, 143, "terminated"), (signal.SIGINT, 130, "interrupted")])
+def test_a_signal_saves_a_final_checkpoint_and_the_same_command_continues(tmp_path, sig, rc, status):
     run_dir = tmp_path / "run"
     extra = ("train.max_frames=2000", "train.checkpoint_every_frames=100000")
     proc = _start(run_dir, *extra)
     _wait_for(lambda: (run_dir / "episodes.csv").exists() and len(_rows(run_dir)) >= 5)
-    os.killpg(proc.pid, signal.SIGTERM)  # a scheduler's time limit signals the whole job
+    os.killpg(proc.pid, sig)  # a scheduler's time limit signals the whole job; Ctrl-C the foreground group
     out, _ = proc.communicate(timeout=120)
-    assert proc.returncode == 143
+    assert proc.returncode == rc
     run = json.loads((run_dir / "run.json").read_text())
-    assert run["status"] == "terminated" and (run_dir / "checkpoints" / "last.pt").exists()
+    assert run["status"] == status and (run_dir / "checkpoints" / "last.pt").exists()
     assert f"pamrun train resume={run_dir}" in out
     stopped_at = run["episodes"]
     done = run_pamrun("train", *SMOKE, *extra, f"hydra.run.dir={run_dir}")  # the same command again
@@ -188,3 +189,8 @@ def test_a_run_directory_that_cannot_be_written_fails_in_one_line(tmp_path):
     assert proc.returncode != 0 and "hydra.run.dir" in proc.stderr and "Traceback" not in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
 
+
+def test_a_sweep_over_an_option_that_does_not_exist_writes_nothing(tmp_path):
+    proc = run_pamrun("sweep", "-m", "algo=ppo,td3", f"hydra.sweep.dir={tmp_path / 'sw'}")
+    assert proc.returncode != 0 and "algo: no option 'ppo'" in proc.stderr
+    assert not (tmp_path / "sw").exists()
