@@ -241,6 +241,12 @@ def save_last(ckpt_dir: Path, cfg, learner, buffer, counters: dict) -> None:
 
     from pamrun.runio import atomic_save
 
+    needed = _checkpoint_bytes(learner, buffer)
+    free = shutil.disk_usage(ckpt_dir).free
+    if free < needed:  # a memory-mapped dump onto a full disk dies of SIGBUS, with no message
+        raise CheckpointError(ckpt_dir, f"not enough disk space for a checkpoint: about {needed / 1e6:.0f} MB "
+                                        f"needed, {free / 1e6:.0f} MB free (any previous checkpoint is kept); "
+                                        "free some space or lower train.buffer_size")
     name = f"buffer-{counters['frames']:010d}"
     tmp = ckpt_dir / (name + ".tmp")
     shutil.rmtree(tmp, ignore_errors=True)
@@ -257,6 +263,15 @@ def save_last(ckpt_dir: Path, cfg, learner, buffer, counters: dict) -> None:
             shutil.rmtree(old, ignore_errors=True)
 
 
+def _checkpoint_bytes(learner, buffer) -> int:
+    """What a checkpoint writes, roughly: the buffer's storage (its full capacity, as TorchRL
+    dumps it), three copies of every parameter (weights, two Adam moments) and 16 MB to spare."""
+    storage = getattr(buffer.storage, "_storage", None)
+    data = 0 if storage is None else sum(t.numel() * t.element_size() for t in storage.values(True, True))
+    params = sum(p.numel() * p.element_size() for p in learner.loss.parameters())
+    return int(data + 3 * params + 16e6)
+
+
 def file_fingerprints(folder: Path) -> dict[str, list[int]]:
     """Relative path -> [size, CRC-32] of every file below ``folder``."""
     import zlib
@@ -269,6 +284,14 @@ def file_fingerprints(folder: Path) -> dict[str, list[int]]:
                 crc = zlib.crc32(chunk, crc)
         out[str(path.relative_to(folder))] = [path.stat().st_size, crc]
     return out
+
+
+def saved_counters(ckpt_dir: Path) -> dict | None:
+    """The counters of the last checkpoint on disk (None without one)."""
+    import torch
+
+    path = ckpt_dir / LAST
+    return dict(torch.load(path, weights_only=True)["counters"]) if path.exists() else None
 
 
 def load_last(ckpt_dir: Path, learner, buffer) -> dict:

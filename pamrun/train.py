@@ -190,7 +190,7 @@ def train(dcfg: DictConfig) -> None:
                                max(0, cfg.train.init_random_frames - frames))
     collector.set_seed(cfg.seed + frames)
     clock = Clock(counters["wall_time_s"])
-    update_budget, status = 0.0, None
+    update_budget, status, failure = 0.0, None, None
     console.print(header_table(cfg, out))
     progress = Progress(console, cfg.train.max_frames, frames)
     previous_sigterm = signal.signal(signal.SIGTERM, _terminate)
@@ -217,6 +217,8 @@ def train(dcfg: DictConfig) -> None:
         status = "interrupted"
     except Terminated:
         status = "terminated"
+    except checkpoints.CheckpointError as err:  # a checkpoint could not be written (disk full)
+        status, failure = "checkpoint_failed", err
     except Exception:
         status = "failed"
         raise
@@ -232,6 +234,10 @@ def train(dcfg: DictConfig) -> None:
         console.print(f"Stopped ({status}) with a final checkpoint. Continue with: pamrun train resume={out}",
                       soft_wrap=True)
         raise SystemExit(STOPPED_EXIT[status])
+    if failure is not None:
+        again = f"pamrun train resume={out}" if (ckpt_dir / checkpoints.LAST).exists() else \
+            "the same command (no checkpoint yet: it starts clean)"
+        raise SystemExit(f"pamrun: training stopped: {failure}. Then continue with: {again}")
     if status == "physics_unstable":
         console.print(f"[red]Stopped: the physics blew up in {sum(log.flagged[-100:])} of the last "
                       f"{len(log.flagged[-100:])} episodes.[/red] The robot is unstable in MuJoCo at this setting: "
@@ -423,7 +429,10 @@ def close_run(out: Path, cfg: Config, learner, buffer, counters: dict, log: "Epi
               saved: list) -> None:
     """The final checkpoint, the log made durable and closed, and run.json with how the run ended."""
     log.sync()
-    checkpoints.save_last(out / "checkpoints", cfg, learner, buffer, counters)
+    if status != "checkpoint_failed":
+        checkpoints.save_last(out / "checkpoints", cfg, learner, buffer, counters)
+    else:  # the episodes after the last checkpoint will be run again on resume
+        counters = checkpoints.saved_counters(out / "checkpoints") or counters
     log.close()
     log.writer.close()
     info.update(status=status, end=time.strftime("%Y-%m-%dT%H:%M:%S"), frames=counters["frames"],

@@ -194,3 +194,26 @@ def test_a_sweep_over_an_option_that_does_not_exist_writes_nothing(tmp_path):
     proc = run_pamrun("sweep", "-m", "algo=ppo,td3", f"hydra.sweep.dir={tmp_path / 'sw'}")
     assert proc.returncode != 0 and "algo: no option 'ppo'" in proc.stderr
     assert not (tmp_path / "sw").exists()
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 3 MB tmpfs: a disk that fills up (needs root and mount(2); skipped where neither is allowed)."""
+    mount_point = tmp_path / "small"
+    mount_point.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=3m", "tmpfs", str(mount_point)],
+                      capture_output=True).returncode != 0:
+        pytest.skip("cannot mount a small tmpfs here (needs root)")
+    yield mount_point
+    subprocess.run(["umount", "-l", str(mount_point)], capture_output=True)
+
+
+def test_a_full_disk_stops_the_run_with_a_message_not_a_bus_error(small_disk):
+    run_dir = small_disk / "run"
+    proc = run_pamrun("train", *SMOKE, "train.max_frames=1200", "train.checkpoint_every_frames=400",
+                      f"hydra.run.dir={run_dir}")
+    assert proc.returncode == 1, proc.stderr[-2000:]  # not 135 (SIGBUS)
+    last = proc.stderr.strip().splitlines()[-1]
+    assert "not enough disk space for a checkpoint" in last and "MB free" in last and str(run_dir) in last
+    assert json.loads((run_dir / "run.json").read_text())["status"] == "checkpoint_failed"
+    assert not list((run_dir / "checkpoints").glob("buffer*"))  # no half-written buffer left behind
