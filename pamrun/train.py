@@ -213,15 +213,10 @@ def train(dcfg: DictConfig) -> None:
             status = stop_reason(cfg, log, clock.seconds())
             if status:
                 break
-    except KeyboardInterrupt:
-        status = "interrupted"
-    except Terminated:
-        status = "terminated"
-    except checkpoints.CheckpointError as err:  # a checkpoint could not be written (disk full)
-        status, failure = "checkpoint_failed", err
-    except Exception:
-        status = "failed"
-        raise
+    except BaseException as err:
+        status, failure = stopped_by(err)
+        if status == "failed":
+            raise
     finally:
         signal.signal(signal.SIGTERM, previous_sigterm)
         progress.stop()
@@ -230,12 +225,28 @@ def train(dcfg: DictConfig) -> None:
                   status or "max_frames", saved)
     plots.training_curves(out / "episodes.csv", out / "training.png")
     console.print(summary_table(run_info, log, saved, out))
+    end_of_run(console, out, status, failure, log)
+
+
+def stopped_by(err: BaseException) -> tuple[str, Exception | None]:
+    """The run.json status of a training stopped by ``err`` (``failed``: a crash to re-raise)."""
+    if isinstance(err, KeyboardInterrupt):
+        return "interrupted", None
+    if isinstance(err, Terminated):
+        return "terminated", None
+    if isinstance(err, checkpoints.CheckpointError):  # a checkpoint could not be written (disk full)
+        return "checkpoint_failed", err
+    return "failed", None
+
+
+def end_of_run(console, out: Path, status: str | None, failure: Exception | None, log: "EpisodeLog") -> None:
+    """How a run that did not finish its budget says so: the next command, and its exit code."""
     if status in STOPPED_EXIT:
         console.print(f"Stopped ({status}) with a final checkpoint. Continue with: pamrun train resume={out}",
                       soft_wrap=True)
         raise SystemExit(STOPPED_EXIT[status])
     if failure is not None:
-        again = f"pamrun train resume={out}" if (ckpt_dir / checkpoints.LAST).exists() else \
+        again = f"pamrun train resume={out}" if (out / "checkpoints" / checkpoints.LAST).exists() else \
             "the same command (no checkpoint yet: it starts clean)"
         raise SystemExit(f"pamrun: training stopped: {failure}. Then continue with: {again}")
     if status == "physics_unstable":
