@@ -68,6 +68,16 @@ def test_rank_ascending_nan_last_and_ties_by_name():
     assert [r["agent"] for r in rank(rows, ["return_mean"])] == ["w", "x", "y", "z"]
 
 
+def test_a_physics_blow_up_fails_the_walk_test_and_ranks_last():
+    """A blown-up episode's 30 m mean nothing: the agent fails the walk test and ranks below every other."""
+    blown = {"fell": False, "physics_error": True, "duration_s": 10.0, "max_abs_y_m": 0.0, "return": 500.0,
+             "distance_m": 30.0, "speed_m_s": 3.0, "pressure_change_kpa": 1.0}
+    agg = aggregate([blown, {**blown, "physics_error": False, "distance_m": 1.0}], 10.0, 0.5)
+    assert agg["physics_error_rate"] == 0.5 and agg["walk_pass_rate"] == 0.5 and agg["walk_test"] is False
+    rows = [{**row("blown", 1.0, 30.0), "physics_error_rate": 0.5}, row("slow", 0.0, 0.5)]
+    assert [r["agent"] for r in rank(rows, ["walk_pass_rate", "distance_mean"])] == ["slow", "blown"]
+
+
 @pytest.mark.parametrize("override, key", [
     ("eval.rank_by=[speed]", "eval.rank_by"),
     ("eval.workers=-1", "eval.workers"),
