@@ -83,7 +83,8 @@ class EpisodeLog:
         rows = self.read(self.path) if self.path.exists() else []
         history = [float(r["reward"]) for r in rows]
         self.flagged = [int(r.get("physics_error") or 0) for r in rows]
-        self.write_rows(self.path, rows)  # today's header, whatever version wrote the file
+        if not rows or list(rows[0]) != list(CSV_FIELDS):
+            self.write_rows(self.path, rows)  # a new log, or one an older pamrun wrote: today's header
         self.file = self.path.open("a", newline="")
         self.csv = csv.DictWriter(self.file, fieldnames=CSV_FIELDS)
         self.rewards: list[float] = history
@@ -330,8 +331,8 @@ def open_run(cfg: Config, out: Path, console) -> tuple[Config, Path, bool]:
         cfg = load_run_config(out)
         console.print(f"Resuming {out} with its own config ({cfg.algo.name}); command-line values are ignored.")
         return cfg, out, True
-    leftovers = [p for p in out.iterdir() if p.name in LEFTOVERS or p.name.startswith("buffer")] + \
-        [p for p in (out / "checkpoints").glob("*")] if out.exists() else []
+    leftovers = [out / name for name in LEFTOVERS if (out / name).exists()]
+    leftovers += sorted((out / "checkpoints").glob("*"))
     if leftovers:
         aside = out / f"aborted-{time.strftime('%Y%m%d-%H%M%S')}"
         aside.mkdir()

@@ -26,7 +26,6 @@ def field_docs(cls: type) -> dict[str, str]:
         if tok.type == tokenize.COMMENT:
             comments[tok.start[0]] = tok.string.lstrip("#").strip()
     body = ast.parse(source).body[0].body
-    fields = {node.lineno for node in body if isinstance(node, ast.AnnAssign)}
     docs = {}
     for node in body:
         if not isinstance(node, ast.AnnAssign) or not isinstance(node.target, ast.Name):
@@ -35,9 +34,8 @@ def field_docs(cls: type) -> dict[str, str]:
         text = comments[node.end_lineno] if trailing else ""
         if not text:  # the comment block heading this run of fields (no blank line in between)
             k = node.lineno - 1
-            while k in fields or (k >= 1 and lines[k - 1].strip() and not lines[k - 1].lstrip().startswith("#")
-                                  and k - 1 >= 0 and any(k > f for f in fields) and _continues(lines[k - 1])):
-                k -= 1
+            while k >= 1 and lines[k - 1].strip() and not lines[k - 1].lstrip().startswith("#"):
+                k -= 1  # over the fields (and their continuation lines) above
             above = []
             while k >= 1 and lines[k - 1].lstrip().startswith("#"):
                 above.insert(0, comments.get(k, ""))
@@ -45,11 +43,6 @@ def field_docs(cls: type) -> dict[str, str]:
             text = " ".join(above)
         docs[node.target.id] = text
     return docs
-
-
-def _continues(line: str) -> bool:
-    """A continuation line of a multi-line field default (inside brackets)."""
-    return line.startswith((" " * 8, "\t\t")) or line.strip().startswith((")", "]", "}"))
 
 
 def describe(cls: type, prefix: str = "", instance: Any = None) -> list[tuple[str, Any, str]]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 from pamrun.config.checks import CONF_DIR, _non_negative, _positive, _require
 
@@ -185,12 +185,13 @@ class MuscleConfig:
       ``kinematic_rest_contraction_pct`` (zero torque at equal pressures). 0 is the
       standing pose, except the knee: at -5 deg, past its extension stop, equal pressures
       press the straight knee into the stop (about 7 N m at zero action), which locks it
-      as a standing person's knee is locked; without it the knee buckles within ~3 s.
+      as a standing person's knee is locked; without it the knee buckles and the robot falls
+      within 2.3-3.0 s.
     * ``min_contraction_pct``: the most a muscle may be stretched, as a (negative)
       contraction, at least -3 % (the bottom of the thesis' force fit, §8.3, inside
       Festo's permitted pre-tension of about 5 %). The default -1 % is chosen with
-      ``pamrun openloop``: at -2 or -3 % the deflated, stretched antagonist pulls back so
-      hard that the agonist no longer reaches the hip-pitch limits against gravity.
+      ``pamrun openloop``: at -2 % the deflated, stretched antagonist pulls back so hard that
+      the hip-pitch limits are missed (7 of 9 reached), at -3 % 2 of 9.
     * ``command``: ``antagonistic`` is the thesis' 10 actions, V1,2 = V0 +- dV a (§9.5);
       ``independent`` gives 20 actions, V = V0 + dV a per muscle, so a policy sets each
       pair's co-contraction (stiffness) as well as its torque. Zero action is V0 in both.
@@ -256,8 +257,10 @@ class MuscleConfig:
     def radius_m(self, joint: str, reach_rad: float) -> float:
         """Pulley radius [m] of a joint whose farthest limit is ``reach_rad`` from its neutral angle."""
         explicit = getattr(self.radius_mm, joint) / 1000.0
-        if explicit > 0:
-            return explicit
+        return explicit if explicit > 0 else self.largest_radius_m(reach_rad)
+
+    def largest_radius_m(self, reach_rad: float) -> float:
+        """The radius [m] that stretches a muscle exactly to ``min_contraction_pct`` at ``reach_rad``."""
         span_pct = self.kinematic_rest_contraction_pct - self.min_contraction_pct
         return span_pct / 100.0 * self.nominal_length_m / reach_rad
 
@@ -268,7 +271,7 @@ def check_muscle_stretch(muscle: MuscleConfig, body: "BodyConfig") -> None:
         reach = muscle.reach_rad(joint, getattr(body, f"{joint}_limits_deg"))
         radius = muscle.radius_m(joint, reach)
         stretched = muscle.kinematic_rest_contraction_pct - 100.0 * radius * reach / muscle.nominal_length_m
-        largest_mm = 1000.0 * replace(muscle, radius_mm=JointRadii()).radius_m(joint, reach)
+        largest_mm = 1000.0 * muscle.largest_radius_m(reach)
         _require(
             stretched >= muscle.min_contraction_pct - 1e-9,
             f"radius_mm.{joint}",
