@@ -1,16 +1,19 @@
 """Training throughput on this machine: pamrun vs a plain-PyTorch floor vs Stable-Baselines3.
 
-    python benchmarks/train_throughput.py [--frames 3000] [--updates 500]
+    python benchmarks/train_throughput.py [--frames 3000] [--updates 400] [--repeats 3]
 
-Measures, in one run, with the thesis' networks (400/300) at batch 128:
-1. ``pamrun train`` with DDPG and with TD3 at one gradient update per frame: environment
+Measures, in one run, with the thesis' networks (400/300) at batch 128, each measurement
+``--repeats`` times in turn (so a change of machine load hits all of them alike):
+1. ``pamrun train`` with TD3 (and DDPG) at one gradient update per frame: environment
    frames/s and updates/s of the whole loop (collection + learning), from run.json;
-2. TorchRL's TD3 update alone (``TD3Loss`` critic/actor halves + Adam + ``SoftUpdate``) on one batch;
-3. a plain-PyTorch TD3 update of the same networks and batch: the floor TorchRL's
-   machinery costs over;
-4. Stable-Baselines3's TD3 on PamWalker-v0 with net_arch [400, 300], batch 128, one
+2. pamrun's TD3 update alone (``agents.Learner.update``: critics, actor, Adam, targets) on one batch;
+3. TorchRL's TD3 update alone (``TD3Loss`` critic/actor halves + Adam + ``SoftUpdate``), which
+   pamrun used before 0.2;
+4. a plain-PyTorch TD3 update of the same networks and batch (CleanRL style): the floor;
+5. Stable-Baselines3's TD3 on PamWalker-v0 with net_arch [400, 300], batch 128, one
    update per step (install with ``pip install -e .[bench]``; skipped if missing).
-Results are appended to benchmarks/results/train_throughput.jsonl.
+It prints min / median / max of each and the ratios of the medians, and appends them to
+benchmarks/results/train_throughput.jsonl.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ import argparse
 import copy
 import json
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -45,23 +49,50 @@ def pamrun_loop(algo: str, frames: int) -> dict:
             "frames": run["frames"], "updates": run["updates"], "wall_s": wall}
 
 
-def torchrl_td3_updates(n: int) -> float:
+def _batch():
     from tensordict import TensorDict
+
+    return TensorDict({"observation": torch.randn(BATCH, OBS), "action": torch.rand(BATCH, ACT) * 2 - 1,
+                       "next": {"observation": torch.randn(BATCH, OBS), "reward": torch.randn(BATCH, 1),
+                                "done": torch.zeros(BATCH, 1, dtype=torch.bool),
+                                "terminated": torch.zeros(BATCH, 1, dtype=torch.bool)}}, [BATCH])
+
+
+def _spec():
     from torchrl.data import Bounded
 
+    return Bounded(-torch.ones(ACT), torch.ones(ACT), (ACT,))
+
+
+def pamrun_td3_updates(n: int) -> float:
+    """pamrun's own update (what ``pamrun train algo=td3`` runs per gradient step)."""
+    learner = agents.make_learner(AlgoConfig(name="td3", actor_update_every=2), OBS, ACT, _spec())
+    batch = _batch()
+    for _ in range(20):
+        learner.update(batch)
+    start = time.perf_counter()
+    for _ in range(n):
+        learner.update(batch)
+    return n / (time.perf_counter() - start)
+
+
+def torchrl_td3_updates(n: int) -> float:
+    from torchrl.objectives import SoftUpdate, TD3Loss
+
     cfg = AlgoConfig(name="td3")
-    spec = Bounded(-torch.ones(ACT), torch.ones(ACT), (ACT,))
-    actor, critic = agents.make_actor(cfg, OBS, ACT), agents.make_critic(cfg, OBS, ACT)
-    loss, updater, _ = agents.make_loss(cfg, actor, critic, spec)
-    critic_loss, actor_loss = agents.loss_parts(loss)
+    actor, critic = agents.make_actor(cfg, OBS, ACT), ValueOperatorCritic(cfg)
+    loss = TD3Loss(actor, critic, action_spec=_spec(), num_qvalue_nets=2, loss_function="l2", delay_actor=True,
+                   delay_qvalue=True)
+    loss.make_value_estimator(gamma=cfg.gamma)
+    updater = SoftUpdate(loss, tau=0.005)
+    critic_loss, actor_loss = loss.value_loss, loss.actor_loss
     a_opt = torch.optim.Adam(list(loss.actor_network_params.flatten_keys().values()), 1e-3)
     c_opt = torch.optim.Adam(list(loss.qvalue_network_params.flatten_keys().values()), 1e-3)
-    batch = TensorDict({"observation": torch.randn(BATCH, OBS), "action": torch.rand(BATCH, ACT) * 2 - 1,
-                        "next": {"observation": torch.randn(BATCH, OBS), "reward": torch.randn(BATCH, 1),
-                                 "done": torch.zeros(BATCH, 1, dtype=torch.bool),
-                                 "terminated": torch.zeros(BATCH, 1, dtype=torch.bool)}}, [BATCH])
-    start = time.perf_counter()
-    for i in range(n):
+    batch = _batch()
+    start = None
+    for i in range(n + 20):
+        if i == 20:
+            start = time.perf_counter()
         c_opt.zero_grad()
         critic_loss(batch)[0].backward()
         c_opt.step()
@@ -71,6 +102,12 @@ def torchrl_td3_updates(n: int) -> float:
             a_opt.step()
             updater.step()
     return n / (time.perf_counter() - start)
+
+
+def ValueOperatorCritic(cfg):  # noqa: N802 (a factory of TorchRL's critic wrapper)
+    from torchrl.modules import ValueOperator
+
+    return ValueOperator(agents.make_critic(cfg, OBS, ACT), in_keys=["observation", "action"])
 
 
 def plain_td3_updates(n: int) -> float:
@@ -83,8 +120,10 @@ def plain_td3_updates(n: int) -> float:
     q_opt = torch.optim.Adam(list(q1.parameters()) + list(q2.parameters()), 1e-3)
     obs, act, rew = torch.randn(BATCH, OBS), torch.rand(BATCH, ACT) * 2 - 1, torch.randn(BATCH, 1)
     nxt, done = torch.randn(BATCH, OBS), torch.zeros(BATCH, 1)
-    start = time.perf_counter()
-    for i in range(n):
+    start = None
+    for i in range(n + 20):
+        if i == 20:
+            start = time.perf_counter()
         with torch.no_grad():
             noise = (torch.randn_like(act) * cfg.policy_noise).clamp(-cfg.noise_clip, cfg.noise_clip)
             a2 = (actor_t(nxt) + noise).clamp(-1, 1)
@@ -123,24 +162,45 @@ def sb3_td3(frames: int) -> dict | None:
     return {"frames_per_s": round(frames / wall, 1), "updates_per_s": round((frames - 200) / wall, 1), "wall_s": round(wall, 2)}
 
 
+def spread(values: list[float]) -> dict:
+    return {"min": round(min(values), 1), "median": round(statistics.median(values), 1), "max": round(max(values), 1),
+            "n": len(values)}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=3000)
-    parser.add_argument("--updates", type=int, default=500)
+    parser.add_argument("--updates", type=int, default=400)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--ddpg", action="store_true", help="also measure pamrun train algo=ddpg")
     args = parser.parse_args()
-    row = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "cpu_count": os.cpu_count(), "torch_threads": torch.get_num_threads()}
-    row["pamrun_ddpg"] = pamrun_loop("ddpg", args.frames)
-    row["pamrun_td3"] = pamrun_loop("td3", args.frames)
-    row["torchrl_td3_update_per_s"] = round(torchrl_td3_updates(args.updates), 1)
-    row["plain_pytorch_td3_update_per_s"] = round(plain_td3_updates(args.updates), 1)
-    row["sb3_td3"] = sb3_td3(args.frames)
-    for key, value in row.items():
-        print(f"{key:>32}: {value}")
-    ref = row["sb3_td3"]
-    if ref:
-        print(f"{'pamrun td3 / sb3 td3 (frames/s)':>32}: {row['pamrun_td3']['frames_per_s'] / ref['frames_per_s']:.2f}")
-    print(f"{'torchrl / plain update rate':>32}: "
-          f"{row['torchrl_td3_update_per_s'] / row['plain_pytorch_td3_update_per_s']:.2f}")
+    runs: dict[str, list[float]] = {}
+    for _ in range(args.repeats):  # interleaved, so drifting load hits every measurement alike
+        measures = {"pamrun_td3_loop_frames_per_s": lambda: pamrun_loop("td3", args.frames)["frames_per_s"],
+                    "pamrun_td3_update_per_s": lambda: pamrun_td3_updates(args.updates),
+                    "torchrl_td3_update_per_s": lambda: torchrl_td3_updates(args.updates),
+                    "plain_pytorch_td3_update_per_s": lambda: plain_td3_updates(args.updates)}
+        if args.ddpg:
+            measures["pamrun_ddpg_loop_frames_per_s"] = lambda: pamrun_loop("ddpg", args.frames)["frames_per_s"]
+        sb3 = sb3_td3(args.frames)
+        if sb3:
+            runs.setdefault("sb3_td3_loop_frames_per_s", []).append(sb3["frames_per_s"])
+        for key, measure in measures.items():
+            runs.setdefault(key, []).append(measure())
+            print(f"{key:>34}: {runs[key][-1]:.1f}", flush=True)
+    row = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "cpu_count": os.cpu_count(),
+           "torch_threads": torch.get_num_threads(), **{k: spread(v) for k, v in runs.items()}}
+    med = {k: row[k]["median"] for k in runs}
+    ratios = {"pamrun_update / plain_pytorch_update": med["pamrun_td3_update_per_s"] / med["plain_pytorch_td3_update_per_s"],
+              "torchrl_update / plain_pytorch_update": med["torchrl_td3_update_per_s"] / med["plain_pytorch_td3_update_per_s"]}
+    if "sb3_td3_loop_frames_per_s" in med:
+        ratios["pamrun_loop / sb3_loop"] = med["pamrun_td3_loop_frames_per_s"] / med["sb3_td3_loop_frames_per_s"]
+    row["ratios_of_medians"] = {k: round(v, 3) for k, v in ratios.items()}
+    print(f"{'measure':>34}  {'min':>7} {'median':>7} {'max':>7}")
+    for key in runs:
+        print(f"{key:>34}  {row[key]['min']:7.1f} {row[key]['median']:7.1f} {row[key]['max']:7.1f}")
+    for key, value in row["ratios_of_medians"].items():
+        print(f"{key:>40}: {value:.2f}")
     out = Path(__file__).parent / "results" / "train_throughput.jsonl"
     out.parent.mkdir(exist_ok=True)
     with out.open("a") as fh:

@@ -268,7 +268,7 @@ def _checkpoint_bytes(learner, buffer) -> int:
     dumps it), three copies of every parameter (weights, two Adam moments) and 16 MB to spare."""
     storage = getattr(buffer.storage, "_storage", None)
     data = 0 if storage is None else sum(t.numel() * t.element_size() for t in storage.values(True, True))
-    params = sum(p.numel() * p.element_size() for p in learner.loss.parameters())
+    params = sum(p.numel() * p.element_size() for p in learner.parameters())
     return int(data + 3 * params + 16e6)
 
 

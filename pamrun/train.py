@@ -291,13 +291,20 @@ def record_episodes(finished: list[dict], cfg: Config, learner, log: "EpisodeLog
 
 
 def learn(learner, buffer, log: "EpisodeLog", budget: float) -> float:
-    """Spend the whole updates of ``budget`` on replay samples; return the fraction left."""
-    while budget >= 1:
-        budget -= 1
-        learner.update(buffer.sample())
-        if learner.updates % 50 == 0:
-            log.losses(learner.losses(), learner.updates)
-    return budget
+    """Spend the whole updates of ``budget`` on replay samples; return the fraction left.
+
+    The buffer does not change between these updates, so their samples are drawn in one
+    call (uniform with replacement, as one sample per update would be): one TensorDict
+    operation per batch of frames instead of one per update."""
+    n = int(budget)
+    if n:
+        batch = learner.cfg.batch_size
+        samples = buffer.sample(n * batch).reshape(n, batch)
+        for i in range(n):
+            learner.update(samples[i])
+            if learner.updates % 50 == 0:
+                log.losses(learner.losses(), learner.updates)
+    return budget - n
 
 
 def run_counters(frames: int, log: "EpisodeLog", learner, clock: "Clock") -> dict:
@@ -356,7 +363,8 @@ def action_spec(cfg: Config):
 def make_buffer(cfg: Config):
     from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
-    return TensorDictReplayBuffer(storage=LazyTensorStorage(cfg.train.buffer_size), batch_size=cfg.algo.batch_size)
+    # No batch_size: learn() draws the samples of many updates in one call.
+    return TensorDictReplayBuffer(storage=LazyTensorStorage(cfg.train.buffer_size))
 
 
 class Terminated(Exception):

@@ -1,4 +1,4 @@
-"""Actor/critic of thesis Tables 9.1-9.2, TorchRL losses, exploration schedule."""
+"""Actor/critic of thesis Tables 9.1-9.2, the learner against TorchRL's losses, exploration schedule."""
 
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ def test_actor_is_table_9_1():
 
 
 def test_critic_is_table_9_2():
-    critic = agents.make_critic(AlgoConfig(), 43, 10).module
+    critic = agents.make_critic(AlgoConfig(), 43, 10)
     assert (critic.obs_path[0].in_features, critic.obs_path[0].out_features) == (43, 400)
     assert (critic.obs_path[2].in_features, critic.obs_path[2].out_features) == (400, 300)
     assert (critic.action_path.in_features, critic.action_path.out_features) == (10, 300)
@@ -33,31 +33,113 @@ def test_critic_is_table_9_2():
     assert critic(torch.randn(4, 43), torch.randn(4, 10)).shape == (4, 1)
 
 
-@pytest.mark.parametrize("name, keys", [("ddpg", ("loss_actor", "loss_value")), ("td3", ("loss_actor", "loss_qvalue"))])
-def test_losses_train_the_critic(name, keys):
-    """A few updates on a fixed batch reduce the critic loss: the loss is wired to real gradients."""
+def _batch(n: int = 64, terminated_every: int = 5):
     from tensordict import TensorDict
 
-    torch.manual_seed(0)
-    cfg = AlgoConfig(name=name)
-    actor, critic = agents.make_actor(cfg, 43, 10), agents.make_critic(cfg, 43, 10)
-    loss, updater, got_keys = agents.make_loss(cfg, actor, critic, SPEC)
-    assert got_keys == keys
-    n = 64
-    batch = TensorDict({
+    terminated = (torch.arange(n) % terminated_every == 0).reshape(n, 1)
+    return TensorDict({
         "observation": torch.randn(n, 43), "action": torch.rand(n, 10) * 2 - 1,
         "next": {"observation": torch.randn(n, 43), "reward": torch.randn(n, 1),
-                 "done": torch.zeros(n, 1, dtype=torch.bool), "terminated": torch.zeros(n, 1, dtype=torch.bool)},
+                 "done": terminated.clone(), "terminated": terminated},
     }, batch_size=[n])
-    params = loss.value_network_params if name == "ddpg" else loss.qvalue_network_params
-    opt = torch.optim.Adam(list(params.flatten_keys().values()), lr=1e-3)
-    first = float(loss(batch)[keys[1]])
+
+
+def _copy_into(params, nets) -> None:
+    """Write each net's parameters into TorchRL's (possibly stacked) parameter TensorDict."""
+    flat = params.flatten_keys()
+    with torch.no_grad():
+        for key in flat.keys():
+            stacked = torch.stack([dict(net.named_parameters())[key.removeprefix("module.")] for net in nets])
+            flat[key].copy_(stacked if flat[key].dim() == stacked.dim() else stacked[0])
+
+
+def _torchrl_loss(name: str, learner: agents.Learner):
+    """TorchRL's own loss for this algorithm, holding copies of the learner's networks and targets."""
+    from tensordict.nn import TensorDictModule
+    from torchrl.modules import ValueOperator
+    from torchrl.objectives import DDPGLoss, TD3Loss
+
+    actor = TensorDictModule(learner.actor.module, in_keys=["observation"], out_keys=["action"])
+    critic = ValueOperator(learner.critics[0], in_keys=["observation", "action"])
+    if name == "ddpg":
+        loss = DDPGLoss(actor, critic, loss_function="l2", delay_actor=True, delay_value=True)
+        critic_params, critic_targets = loss.value_network_params, loss.target_value_network_params
+    else:
+        loss = TD3Loss(actor, critic, action_spec=SPEC, num_qvalue_nets=2, policy_noise=0.0, noise_clip=0.5,
+                       loss_function="l2", delay_actor=True, delay_qvalue=True)
+        critic_params, critic_targets = loss.qvalue_network_params, loss.target_qvalue_network_params
+    loss.make_value_estimator(gamma=learner.cfg.gamma)
+    # TorchRL copies the networks; give it the learner's parameters and (different) targets.
+    for params, nets in ((critic_params, learner.critics), (critic_targets, learner.critic_targets),
+                         (loss.target_actor_network_params, [learner.actor_target])):
+        _copy_into(params, nets)
+    return loss
+
+
+@pytest.mark.parametrize("name", ["ddpg", "td3"])
+def test_learner_losses_equal_torchrl(name):
+    """The learner's critic and actor losses are TorchRL's DDPGLoss / TD3Loss on the same
+    networks, targets and batch (TD3 without target noise, which is random), and so are
+    the critic's gradients."""
+    torch.manual_seed(0)
+    cfg = AlgoConfig(name=name, policy_noise=0.0)
+    learner = agents.make_learner(cfg, 43, 10, SPEC)
+    with torch.no_grad():  # targets that differ from the networks, so a swapped network would show
+        for p in [*learner.actor_target.parameters(), *learner.critic_targets.parameters()]:
+            p.add_(0.05 * torch.randn_like(p))
+    batch = _batch()
+    reference = _torchrl_loss(name, learner)
+    critic_ref, actor_ref = ((reference.loss_value, reference.loss_actor) if name == "ddpg" else
+                             (reference.value_loss, reference.actor_loss))
+    nxt = batch["next"]
+    ours = learner.critic_loss(batch["observation"], batch["action"], nxt["reward"], nxt["observation"],
+                               nxt["terminated"])
+    theirs = critic_ref(batch)[0]
+    assert float(ours.detach()) == pytest.approx(float(theirs), rel=1e-5)
+    assert float(learner.actor_loss(batch["observation"])) == pytest.approx(float(actor_ref(batch)[0]), rel=1e-5)
+    # the critic gradient of the first critic's first layer, ours vs TorchRL's
+    ours.backward()
+    grad_ours = learner.critics[0].obs_path[0].weight.grad.clone()
+    learner.critics.zero_grad()  # DDPGLoss shares the critic's parameters rather than copying them
+    params = reference.value_network_params if name == "ddpg" else reference.qvalue_network_params
+    theirs.backward()
+    grad_theirs = params.flatten_keys()["module.obs_path.0.weight"].grad
+    grad_theirs = grad_theirs if grad_theirs.dim() == 2 else grad_theirs[0]
+    torch.testing.assert_close(grad_ours, grad_theirs, rtol=1e-4, atol=1e-7)
+
+
+@pytest.mark.parametrize("name", ["ddpg", "td3"])
+def test_learner_updates_fit_the_critic_and_move_the_targets(name):
+    """Updates on a fixed batch reduce the critic loss, and the targets follow the networks by tau."""
+    torch.manual_seed(0)
+    learner = agents.make_learner(AlgoConfig(name=name, critic_lr=1e-3), 43, 10, SPEC)
+    batch = _batch()
+    nxt = batch["next"]
+
+    def critic_loss():
+        with torch.no_grad():
+            return float(learner.critic_loss(batch["observation"], batch["action"], nxt["reward"],
+                                             nxt["observation"], nxt["terminated"]))
+
+    first = critic_loss()
+    actor_before = learner.actor.module.net[0].weight.detach().clone()
+    target_before = learner.actor_target.net[0].weight.detach().clone()
     for _ in range(30):
-        opt.zero_grad()
-        loss(batch)[keys[1]].backward()
-        opt.step()
-        updater.step()
-    assert float(loss(batch)[keys[1]]) < 0.5 * first
+        learner.update(batch)
+    assert critic_loss() < 0.5 * first
+    moved = learner.actor.module.net[0].weight.detach() - actor_before
+    assert moved.abs().max() > 0
+    target_moved = learner.actor_target.net[0].weight - target_before
+    assert 0 < target_moved.abs().max() < moved.abs().max()
+    assert all(not p.requires_grad for p in learner.actor_target.parameters())
+    assert all(p.requires_grad for p in learner.critics.parameters())
+
+
+def test_td3_has_two_independent_critics():
+    learner = agents.make_learner(AlgoConfig(name="td3"), 43, 10, SPEC)
+    assert len(learner.critics) == 2
+    assert not torch.equal(learner.critics[0].obs_path[0].weight, learner.critics[1].obs_path[0].weight)
+    assert len(agents.make_learner(AlgoConfig(name="ddpg"), 43, 10, SPEC).critics) == 1
 
 
 def test_noise_schedule_follows_matlab_variance_decay():
