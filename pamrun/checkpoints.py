@@ -25,6 +25,7 @@ from typing import Any
 
 AGENT_GLOB = "agent_ep*.pt"
 LAST = "last.pt"
+BEST_EVAL = "best_eval.pt"  # the best agent by the evaluations during training
 FORMAT = "pamrun-agent/1"
 # The config sections that define the robot and the task an agent acts in.
 ENV_SECTIONS = ("body", "muscle", "reward", "env")
@@ -72,7 +73,8 @@ def agent_record(actor_state: dict, cfg, meta: dict) -> dict:
 def find_checkpoints(spec: str, include_last: bool = True) -> list[Path]:
     """Checkpoint files named by ``spec``: a file, a run directory, a folder of runs or a glob.
 
-    A run directory gives its threshold-saved agents and, with ``include_last``, its final
+    A run directory gives its threshold-saved agents, its best agent by the evaluations
+    during training (``checkpoints/best_eval.pt``) and, with ``include_last``, its final
     agent (``checkpoints/last.pt``). A folder holding several runs (a sweep) gives those
     of every run below it. Raises CheckpointError when nothing is found.
     """
@@ -94,7 +96,8 @@ def find_checkpoints(spec: str, include_last: bool = True) -> list[Path]:
 def _in_directory(path: Path, include_last: bool) -> list[Path]:
     folders = [path / "checkpoints", path] if (path / "checkpoints").is_dir() else [path]
     for folder in folders:
-        files = sorted(folder.glob(AGENT_GLOB)) + ([folder / LAST] if include_last and (folder / LAST).exists() else [])
+        files = sorted(folder.glob(AGENT_GLOB)) + [folder / BEST_EVAL] * (folder / BEST_EVAL).exists() \
+            + ([folder / LAST] if include_last and (folder / LAST).exists() else [])
         if files:
             return files
     # A folder of runs (a sweep): every run below it.
@@ -199,15 +202,20 @@ def unique_labels(agents: list[Agent]) -> None:
 # --------------------------------------------------------------------------- a training's checkpoints
 
 
+def save_agent_record(path: Path, actor_state: dict, cfg, meta: dict) -> Path:
+    """Write an agent file (weights, ``meta``, the run's algo and env config), atomically."""
+    from pamrun.runio import atomic_save
+
+    return atomic_save(agent_record(actor_state, cfg, meta), path)
+
+
 def save_agent(ckpt_dir: Path, actor_state: dict, row: dict, cfg, saved: list, keep: int) -> list:
     """Save an actor with its episode's reward in name and metadata; keep the best ``keep``.
 
     ``saved`` is the (reward, path) list of the agents on disk, best first; returns it updated."""
-    from pamrun.runio import atomic_save
-
     path = ckpt_dir / f"agent_ep{row['episode']:06d}_r{row['reward']:.1f}.pt"
     meta = {k: row[k] for k in ("episode", "frames", "reward", "distance_m", "q0")}
-    atomic_save(agent_record(actor_state, cfg, meta), path)
+    save_agent_record(path, actor_state, cfg, meta)
     saved = sorted(saved + [(row["reward"], path)], key=lambda t: -t[0])
     for _, old in saved[keep:]:
         old.unlink(missing_ok=True)

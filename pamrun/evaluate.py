@@ -7,8 +7,8 @@ deterministic policy, episode k from seed ``eval.seed + k`` for every agent, spr
 episode: return, forward distance, duration before a fall, fell, max |y|, mean forward
 speed and the mean absolute change of the 20 commanded pressures per control step (the
 thesis found its gait pulsing). An episode passes the **walk test** when it lasts
-``eval.walk_duration_s`` without a fall and never leaves |y| <= ``eval.walk_lateral_m``;
-an agent passes when all its episodes do.
+``eval.walk_duration_s`` without a fall, never leaves |y| <= ``eval.walk_lateral_m`` and ends
+``eval.walk_distance_m`` forward; an agent passes when all its episodes do.
 
 The evaluation directory holds ``episodes.jsonl`` (metrics and per-step x, y, z, joint
 angles, pressures and actions of every episode), ``leaderboard.csv``/``.json`` (ranked by
@@ -35,7 +35,7 @@ from pamrun.checkpoints import (ENV_SECTIONS, Agent, CheckpointError, check_fits
 
 from pamrun.config import RANK_METRICS  # aggregates an agent can be ranked by (``eval.rank_by``)
 
-LEADERBOARD_FIELDS = ("rank", "agent", "walk_test", "walk_pass_rate", "distance_mean", "distance_std", "distance_min",
+LEADERBOARD_FIELDS = ("rank", "agent", "walk_test", "walk_pass_rate", "stand_rate", "distance_mean", "distance_std", "distance_min",
                       "return_mean", "return_std", "duration_mean", "duration_std", "fall_rate", "physics_error_rate",
                       "max_abs_y_mean", "max_abs_y_max", "speed_mean", "speed_std", "pressure_change_mean", "pressure_change_std",
                       "train_episode", "train_reward", "path")
@@ -191,14 +191,70 @@ def evaluate_agents(agents: list[Agent], kwargs: list[dict], episodes: int, seed
     return results
 
 
+# --------------------------------------------------------------------------- during training
+
+EVALS_FIELDS = ("frames", "episodes", "wall_time_s", "eval_s", "walk_pass_rate", "stand_rate", "fall_rate",
+                "distance_mean", "distance_min", "duration_mean", "max_abs_y_max", "return_mean",
+                "pressure_change_mean", "best")
+
+
+class TrainingEvaluator:
+    """The walk test of ``pamrun eval`` run on the current actor during training.
+
+    Every call runs ``cfg.train.eval_episodes`` deterministic episodes in one env of the
+    run's robot and task, episode k from seed ``eval.seed + k`` with ``eval.reset_noise_rad``
+    start noise (the same starts every time, as ``pamrun eval``), in this process with one
+    torch thread, and returns the aggregate (:func:`aggregate`) with its cost ``eval_s``.
+    Anchors: Stable-Baselines3's ``EvalCallback``, TorchRL's ``Evaluator``.
+    """
+
+    def __init__(self, cfg):
+        from pamrun.env import PamWalkerEnv
+
+        self.ecfg, self.episodes = cfg.eval, cfg.train.eval_episodes
+        sections = {k: asdict(getattr(cfg, k)) for k in ENV_SECTIONS}
+        sections["env"].update(reset_noise_rad=cfg.eval.reset_noise_rad,
+                               reset_velocity_noise=cfg.eval.reset_velocity_noise, episode_s=cfg.eval.episode_s)
+        self.env = PamWalkerEnv(**sections)
+
+    def __call__(self, actor) -> dict[str, Any]:
+        import torch
+
+        start = time.perf_counter()
+
+        def policy(obs: np.ndarray) -> np.ndarray:
+            return actor(torch.as_tensor(obs, dtype=torch.float32).unsqueeze(0))[0].numpy()
+
+        with torch.no_grad(), _torch_threads(1):
+            episodes = [run_episode(policy, self.env, self.ecfg.seed + k) for k in range(self.episodes)]
+        return {**aggregate(episodes, self.ecfg), "eval_s": time.perf_counter() - start}
+
+    def better(self, new: dict, best: dict | None) -> bool:
+        """Whether ``new`` ranks before ``best`` by ``eval.rank_by`` (ties keep the old one)."""
+        if best is None:
+            return True
+        ranked = rank([{**best, "agent": "0-best"}, {**new, "agent": "1-new"}], self.ecfg.rank_by)
+        return ranked[0]["agent"] == "1-new"
+
+    def close(self) -> None:
+        self.env.close()
+
+
 # --------------------------------------------------------------------------- metrics and ranking
 
 
-def walk_passed(episode: dict, walk_duration_s: float, walk_lateral_m: float) -> bool:
-    """Thesis §10.3: walked the whole time without falling and inside the lateral band (and
-    without a physics blow-up, whose distances mean nothing)."""
+def walk_passed(episode: dict, ecfg) -> bool:
+    """The walk test of one episode (thesis §10.3 and its abstract): ``ecfg.walk_duration_s``
+    without a fall, never leaving |y| <= ``ecfg.walk_lateral_m``, at least
+    ``ecfg.walk_distance_m`` forward, and no physics blow-up (whose distances mean nothing)."""
+    return (stood(episode, ecfg) and episode["max_abs_y_m"] <= ecfg.walk_lateral_m
+            and episode["distance_m"] >= ecfg.walk_distance_m)
+
+
+def stood(episode: dict, ecfg) -> bool:
+    """The episode lasted ``ecfg.walk_duration_s`` without a fall or a physics blow-up."""
     return (not episode["fell"] and not episode.get("physics_error", False)
-            and episode["duration_s"] >= walk_duration_s - 1e-9 and episode["max_abs_y_m"] <= walk_lateral_m)
+            and episode["duration_s"] >= ecfg.walk_duration_s - 1e-9)
 
 
 # Per-episode metric -> name of its aggregates (<name>_mean, <name>_std).
@@ -206,11 +262,13 @@ AGGREGATED = {"return": "return", "distance_m": "distance", "duration_s": "durat
               "max_abs_y_m": "max_abs_y", "pressure_change_kpa": "pressure_change"}
 
 
-def aggregate(episodes: list[dict], walk_duration_s: float, walk_lateral_m: float) -> dict[str, Any]:
-    """Mean and spread (population std) of an agent's episodes, its extremes and its walk test."""
-    passed = [walk_passed(e, walk_duration_s, walk_lateral_m) for e in episodes]
+def aggregate(episodes: list[dict], ecfg) -> dict[str, Any]:
+    """Mean and spread (population std) of an agent's episodes, its extremes, its walk test
+    and its stand rate (the share of episodes that last the test's duration)."""
+    passed = [walk_passed(e, ecfg) for e in episodes]
     out: dict[str, Any] = {"episodes": len(episodes), "walk_test": all(passed),
                            "walk_pass_rate": float(np.mean(passed)),
+                           "stand_rate": float(np.mean([stood(e, ecfg) for e in episodes])),
                            "fall_rate": float(np.mean([e["fell"] for e in episodes])),
                            "physics_error_rate": float(np.mean([e.get("physics_error", False) for e in episodes]))}
     for key, name in AGGREGATED.items():
@@ -413,10 +471,10 @@ def write_results(out: Path, cfg, spec: str, agents: list[Agent], results: list[
         for agent, episodes in zip(agents, results):
             for k, episode in enumerate(episodes):
                 fh.write(json.dumps({"agent": agent.label, "episode": k, **episode,
-                                     "walk_pass": walk_passed(episode, ecfg.walk_duration_s, ecfg.walk_lateral_m)})
+                                     "walk_pass": walk_passed(episode, ecfg)})
                          + "\n")
     rows = [{"agent": agent.label, "path": str(agent.path), "train_episode": agent.meta.get("episode"),
-             "train_reward": agent.meta.get("reward"), **aggregate(episodes, ecfg.walk_duration_s, ecfg.walk_lateral_m)}
+             "train_reward": agent.meta.get("reward"), **aggregate(episodes, ecfg)}
             for agent, episodes in zip(agents, results)]
     ranked = rank(rows, list(ecfg.rank_by))
     write_leaderboard(out, ranked, errors, cfg, spec, workers, wall_s)

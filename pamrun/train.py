@@ -33,7 +33,7 @@ from pamrun.runio import Progress, git_commit, package_versions, read_json, run_
 from pamrun.runtime import usable_cores
 
 # What a training writes in its directory besides .hydra/ and pamrun_config.yaml.
-LEFTOVERS = ("episodes.csv", "run.json", "tensorboard", "training.png")
+LEFTOVERS = ("episodes.csv", "evals.csv", "run.json", "tensorboard", "training.png")
 NEW_RUN = {"frames": 0, "episodes": 0, "updates": 0, "wall_time_s": 0.0}  # a run's counters at its start
 CSV_FIELDS = ("episode", "frames", "reward", "avg_reward", "q0", "length", "distance_m", "wall_time_s",
               "physics_error")
@@ -163,6 +163,78 @@ class EpisodeLog:
             cls.write_rows(path, [r for r in cls.read(path) if int(r["episode"]) <= episodes])
 
 
+class EvalLog:
+    """Evaluations during training: evals.csv, TensorBoard ``eval/*`` and checkpoints/best_eval.pt.
+
+    ``best_eval.pt`` is only ever replaced by an agent that ranks before it (``eval.rank_by``);
+    its evaluation is stored in it, so a resumed run keeps comparing against it."""
+
+    def __init__(self, out: Path, cfg: Config, writer):
+        from pamrun.evaluate import EVALS_FIELDS, TrainingEvaluator
+
+        self.path, self.best_path = out / "evals.csv", out / "checkpoints" / checkpoints.BEST_EVAL
+        self.evaluator = TrainingEvaluator(cfg)
+        self.writer = writer
+        self.best = checkpoints.load_agent(self.best_path).meta.get("eval") if self.best_path.exists() else None
+        new = not self.path.exists()
+        self.file = self.path.open("a", newline="")
+        self.csv = csv.DictWriter(self.file, fieldnames=EVALS_FIELDS, extrasaction="ignore")
+        if new:
+            self.csv.writeheader()
+
+    def run(self, actor, cfg: Config, counters: dict) -> dict:
+        """Evaluate ``actor`` now; log it, keep it if it is the best so far; return the result."""
+        result = self.evaluator(actor)
+        best = not result["physics_error_rate"] and self.evaluator.better(result, self.best)
+        if best:
+            self.best = {k: v for k, v in result.items() if isinstance(v, (int, float, bool))}
+            meta = {"frames": counters["frames"], "episode": counters["episodes"], "eval": self.best}
+            checkpoints.save_agent_record(self.best_path, actor.state_dict(), cfg, meta)
+        row = {**result, "frames": counters["frames"], "episodes": counters["episodes"],
+               "wall_time_s": round(counters["wall_time_s"], 3), "best": int(best)}
+        self.csv.writerow({k: (round(v, 5) if isinstance(v, float) else v) for k, v in row.items()})
+        self.file.flush()
+        for key in ("walk_pass_rate", "stand_rate", "fall_rate", "distance_mean", "duration_mean",
+                    "max_abs_y_max", "return_mean", "eval_s"):
+            self.writer.add_scalar(f"eval/{key}", result[key], counters["frames"])
+        return result
+
+    def close(self) -> None:
+        self.file.close()
+        self.evaluator.close()
+
+    @staticmethod
+    def read(path: Path) -> list[dict]:
+        """The rows of an evals.csv; a damaged file stops with one line naming it."""
+        try:
+            rows = list(csv.DictReader(path.open()))
+            for r in rows:
+                int(r["frames"]), float(r["walk_pass_rate"])
+            return rows
+        except (KeyError, ValueError, TypeError, csv.Error, UnicodeDecodeError) as err:
+            raise SystemExit(f"pamrun: {path}: not a pamrun evaluation log ({type(err).__name__}: {err}); restore "
+                             "or delete it.") from None
+
+    @classmethod
+    def truncate(cls, out: Path, frames: int) -> None:
+        """Forget evaluations made after the last checkpoint: those frames will be run again."""
+        from pamrun.evaluate import EVALS_FIELDS
+        from pamrun.runio import atomic_write
+
+        path = out / "evals.csv"
+        if not path.exists():
+            return
+        rows = [r for r in cls.read(path) if int(r["frames"]) <= frames]
+
+        def write(tmp: Path) -> None:
+            with tmp.open("w", newline="") as fh:
+                w = csv.DictWriter(fh, fieldnames=EVALS_FIELDS, extrasaction="ignore")
+                w.writeheader()
+                w.writerows(rows)
+
+        atomic_write(path, write)
+
+
 def train(dcfg: DictConfig) -> None:
     """The Hydra task of ``pamrun train``: the recipe, top to bottom."""
     from rich.console import Console
@@ -185,6 +257,7 @@ def train(dcfg: DictConfig) -> None:
     agents.set_noise_scale(learner.explore, agents.noise_scale(cfg.algo, frames))
     log = EpisodeLog(out, cfg.train.avg_window, SummaryWriter(str(out / "tensorboard")), counters["episodes"])
     tracker = EpisodeTracker()
+    evals = EvalLog(out, cfg, log.writer) if cfg.train.eval_every_frames else None
     run_info = start_run_info(out, cfg, resuming, frames)
     saved = checkpoints.scan_saved(ckpt_dir)
     collector = make_collector(cfg, learner.explore, cfg.train.max_frames - frames,
@@ -211,6 +284,11 @@ def train(dcfg: DictConfig) -> None:
             if frames % cfg.train.checkpoint_every_frames < n:
                 log.sync()
                 checkpoints.save_last(ckpt_dir, cfg, learner, buffer, run_counters(frames, log, learner, clock))
+            if evals and frames % cfg.train.eval_every_frames < n:
+                result = evals.run(learner.actor.module, cfg, run_counters(frames, log, learner, clock))
+                if result["walk_test"] and cfg.train.stop_on_walk:
+                    status = "walked"
+                    break
             status = stop_reason(cfg, log, clock.seconds())
             if status:
                 break
@@ -222,6 +300,8 @@ def train(dcfg: DictConfig) -> None:
         signal.signal(signal.SIGTERM, previous_sigterm)
         progress.stop()
         collector.shutdown()
+        if evals:
+            evals.close()
         close_run(out, cfg, learner, buffer, run_counters(frames, log, learner, clock), log, run_info,
                   status or "max_frames", saved)
     plots.training_curves(out / "episodes.csv", out / "training.png")
@@ -273,6 +353,7 @@ def resume(out: Path, learner, buffer) -> dict:
         raise SystemExit(f"pamrun: cannot resume {out}: {log} holds {len(rows)} episodes, the checkpoint "
                          f"{counters['episodes']}: restore it, or start the run again in a new directory.")
     EpisodeLog.truncate(out, counters["episodes"])
+    EvalLog.truncate(out, counters["frames"])
     checkpoints.drop_agents_after(out / "checkpoints", counters["episodes"])
     return counters
 
@@ -498,6 +579,7 @@ def summary_table(run_info: dict, log: EpisodeLog, saved: list, out: Path):
          if rewards else "none"),
         ("saved agents", f"{len(saved)}" + (f", best {saved[0][1].name}" if saved else "")),
         ("physics errors", f"{sum(log.flagged)} episode(s) flagged (never saved)" if sum(log.flagged) else "none"),
+        ("best evaluation", best_eval_text(out)),
         ("episodes", str(out / "episodes.csv")),
         ("curves", str(out / "training.png")),
         ("checkpoints", str(out / "checkpoints")),
@@ -506,6 +588,17 @@ def summary_table(run_info: dict, log: EpisodeLog, saved: list, out: Path):
     for key, value in rows:
         table.add_row(key, value)
     return table
+
+
+def best_eval_text(out: Path) -> str:
+    path = out / "checkpoints" / checkpoints.BEST_EVAL
+    if not path.exists():
+        return "none"
+    meta = checkpoints.load_agent(path).meta
+    e = meta.get("eval", {})
+    return (f"{path.name} at {meta.get('frames')} frames: walk test {e.get('walk_pass_rate', 0):.0%}, stand "
+            f"{e.get('stand_rate', 0):.0%}, distance {e.get('distance_mean', float('nan')):.2f} m "
+            f"(evals.csv)")
 
 
 def load_run_config(out: Path) -> Config:

@@ -15,12 +15,16 @@ import torch
 from pamrun.checkpoints import CheckpointError, find_checkpoints, load_agent
 from pamrun.config import ConfigError, to_object
 from pamrun.env import N_JOINTS, OBS_SIZE, PamWalkerEnv
-from pamrun.evaluate import (aggregate, env_kwargs, evaluate_agents, load_agents, rank, run_episode,
+from pamrun.config import EvalConfig
+from pamrun.evaluate import (aggregate, env_kwargs, evaluate_agents, load_agents, rank, run_episode, stood,
                              walk_passed)
 from tests.conftest import compose_config, run_pamrun
 
 
-def episode(duration=10.0, fell=False, y=0.1, distance=5.0, ret=100.0):
+ECFG = EvalConfig()  # the walk test: 10 s, |y| <= 0.5 m, at least 7 m
+
+
+def episode(duration=10.0, fell=False, y=0.1, distance=7.5, ret=100.0):
     return {"duration_s": duration, "fell": fell, "max_abs_y_m": y, "distance_m": distance, "return": ret,
             "speed_m_s": distance / duration, "pressure_change_kpa": 3.0}
 
@@ -34,20 +38,24 @@ def episode(duration=10.0, fell=False, y=0.1, distance=5.0, ret=100.0):
     (episode(y=0.5001), False),
     (episode(fell=True), False),
     (episode(duration=9.975), False),  # one control step short of 10 s
+    (episode(distance=7.0), True),  # exactly 7 m forward
+    (episode(distance=6.99), False),  # stood and walked, but not far enough
 ])
 def test_walk_test_of_one_episode(ep, passed):
-    assert walk_passed(ep, 10.0, 0.5) is passed
+    assert walk_passed(ep, ECFG) is passed
+    assert stood(ep, ECFG) is (not ep["fell"] and ep["duration_s"] >= 10.0)
 
 
 def test_agent_passes_only_when_every_episode_does():
     agg = aggregate([episode(distance=8.0), episode(distance=6.0), episode(fell=True, duration=4.0, distance=2.0)],
-                    10.0, 0.5)
-    assert agg["walk_pass_rate"] == pytest.approx(2 / 3) and agg["walk_test"] is False
+                    ECFG)
+    assert agg["walk_pass_rate"] == pytest.approx(1 / 3) and agg["walk_test"] is False
+    assert agg["stand_rate"] == pytest.approx(2 / 3)
     assert agg["distance_mean"] == pytest.approx(16 / 3) and agg["distance_min"] == 2.0
     assert agg["fall_rate"] == pytest.approx(1 / 3)
     assert agg["distance_std"] == pytest.approx(np.std([8.0, 6.0, 2.0]))
     assert agg["duration_mean"] == pytest.approx(8.0) and agg["max_abs_y_max"] == 0.1
-    assert aggregate([episode(), episode()], 10.0, 0.5)["walk_test"] is True
+    assert aggregate([episode(), episode()], ECFG)["walk_test"] is True
 
 
 def row(agent, rate, dist, falls=0.0, ret=0.0):
@@ -72,7 +80,7 @@ def test_a_physics_blow_up_fails_the_walk_test_and_ranks_last():
     """A blown-up episode's 30 m mean nothing: the agent fails the walk test and ranks below every other."""
     blown = {"fell": False, "physics_error": True, "duration_s": 10.0, "max_abs_y_m": 0.0, "return": 500.0,
              "distance_m": 30.0, "speed_m_s": 3.0, "pressure_change_kpa": 1.0}
-    agg = aggregate([blown, {**blown, "physics_error": False, "distance_m": 1.0}], 10.0, 0.5)
+    agg = aggregate([blown, {**blown, "physics_error": False, "distance_m": 7.5}], ECFG)
     assert agg["physics_error_rate"] == 0.5 and agg["walk_pass_rate"] == 0.5 and agg["walk_test"] is False
     rows = [{**row("blown", 1.0, 30.0), "physics_error_rate": 0.5}, row("slow", 0.0, 0.5)]
     assert [r["agent"] for r in rank(rows, ["walk_pass_rate", "distance_mean"])] == ["slow", "blown"]

@@ -10,7 +10,7 @@ from pamrun.config.checks import _non_negative, _positive, _require
 
 # Aggregates an agent can be ranked by (``eval.rank_by``; pamrun/evaluate.py computes them);
 # larger is better unless prefixed '-'.
-RANK_METRICS = ("walk_pass_rate", "distance_mean", "distance_min", "return_mean", "duration_mean", "speed_mean",
+RANK_METRICS = ("walk_pass_rate", "stand_rate", "distance_mean", "distance_min", "return_mean", "duration_mean", "speed_mean",
                 "fall_rate", "max_abs_y_mean", "max_abs_y_max", "pressure_change_mean")
 
 
@@ -32,11 +32,14 @@ class EvalConfig:
     reset_noise_rad: float = 0.01  # uniform start-pose noise on the joint angles (0 = the thesis' nominal pose)
     reset_velocity_noise: float = 0.0  # uniform start noise on the joint velocities [rad/s]
     episode_s: float = 10.0  # Tf (§9)
-    # Walk test (§10.3): walk walk_duration_s without falling, never leaving |y| <= walk_lateral_m.
+    # Walk test (§10.3): walk walk_duration_s without falling, never leaving |y| <= walk_lateral_m,
+    # ending at least walk_distance_m forward.
     walk_duration_s: float = 10.0
     walk_lateral_m: float = 0.5  # ... never leaving |y| <= this (thesis Fig. 10.25)
-    # Leaderboard order: aggregate names, best first; a leading '-' ranks that one ascending.
-    rank_by: list[str] = field(default_factory=lambda: ["walk_pass_rate", "distance_mean"])
+    walk_distance_m: float = 7.0  # ... and at least this far forward (thesis abstract: 7-11 m in 10 s)
+    # Leaderboard order: aggregate names, best first; a leading '-' ranks that one ascending. Standing
+    # ranks before distance: an agent that stands 10 s beats one that lunges 10 cm and falls.
+    rank_by: list[str] = field(default_factory=lambda: ["walk_pass_rate", "stand_rate", "distance_mean"])
     include_last: bool = True  # a run directory's final agent (checkpoints/last.pt) competes too
     use_agent_env: bool = True
     top_k: int = 5  # agents drawn in trajectories.png
@@ -50,7 +53,7 @@ class EvalConfig:
             _require(getattr(self, name) >= 1, name, f"must be >= 1, got {getattr(self, name)}")
         _require(self.workers >= 0, "workers", f"must be >= 0 (0 = one per core), got {self.workers}")
         _require(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
-        _non_negative(self, "reset_noise_rad", "reset_velocity_noise")
+        _non_negative(self, "reset_noise_rad", "reset_velocity_noise", "walk_distance_m")
         _positive(self, "episode_s", "walk_duration_s", "walk_lateral_m")
         _require(self.walk_duration_s <= self.episode_s + 1e-9, "walk_duration_s",
                  f"must be <= episode_s ({self.episode_s} s): an episode ends before the test could pass")

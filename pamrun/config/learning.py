@@ -68,11 +68,21 @@ class TrainConfig:
     updates_per_frame: float = 1.0  # gradient updates per collected env step
     buffer_size: int = 1_000_000  # the MathWorks example's ExperienceBufferLength
     checkpoint_every_frames: int = 20_000  # write checkpoints/last.pt (and the buffer) this often
+    # Evaluation during training: eval_episodes deterministic episodes of pamrun eval's walk test
+    # (its seeds, start noise and criteria: the eval group) into evals.csv, TensorBoard eval/*, and
+    # checkpoints/best_eval.pt (the best agent by eval.rank_by).
+    eval_every_frames: int = 20_000  # evaluate the actor this often; 0 = never
+    eval_episodes: int = 10  # episodes per evaluation (the walk test's 10)
+    stop_on_walk: bool = False  # stop the run once an evaluation passes the walk test (status: walked)
 
     def __post_init__(self) -> None:
         for name in ("max_episodes", "max_frames", "avg_window", "keep_saved", "workers", "frames_per_batch",
                      "buffer_size", "checkpoint_every_frames"):
             _require(getattr(self, name) >= 1, name, f"must be >= 1, got {getattr(self, name)}")
         _non_negative(self, "max_minutes", "updates_per_frame")
+        _require(self.eval_every_frames >= 0, "eval_every_frames", f"must be >= 0 (0 = never), got {self.eval_every_frames}")
+        _require(self.eval_episodes >= 1, "eval_episodes", f"must be >= 1, got {self.eval_episodes}")
+        _require(not (self.stop_on_walk and self.eval_every_frames == 0), "stop_on_walk",
+                 "needs evaluations during training (train.eval_every_frames > 0)")
         _require(self.init_random_frames >= 0, "init_random_frames", "must be >= 0")
         _require(self.threads >= 0, "threads", f"must be >= 0 (0 = automatic), got {self.threads}")
