@@ -111,3 +111,78 @@ def test_plot_training_redraws_from_csv(tmp_path):
     proc = run_pamrun("plot", "training", f"dir={run_dir}", f"hydra.run.dir={tmp_path / 'job'}")
     assert proc.returncode == 0, proc.stderr
     assert (run_dir / "training.png").stat().st_size > 5000
+
+
+def test_evaluations_during_training(tmp_path):
+    """A smoke run evaluates its actor every 400 frames: evals.csv, eval/* in TensorBoard, best_eval.pt."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    from pamrun.checkpoints import find_checkpoints, load_agent
+
+    run_dir = tmp_path / "evals"
+    proc = run_pamrun("train", "algo=td3", "train=smoke", "seed=2", f"hydra.run.dir={run_dir}")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    rows = list(csv.DictReader((run_dir / "evals.csv").open()))
+    assert [int(r["frames"]) for r in rows] == [400, 800, 1200]
+    for r in rows:
+        assert 0 <= float(r["walk_pass_rate"]) <= float(r["stand_rate"]) <= 1
+        assert float(r["stand_rate"]) + float(r["fall_rate"]) <= 1 + 1e-9
+        assert 0 < float(r["duration_mean"]) <= 10.0 and float(r["eval_s"]) > 0
+    assert rows[0]["best"] == "1" and sum(int(r["best"]) for r in rows) >= 1
+    best = load_agent(run_dir / "checkpoints" / "best_eval.pt")
+    last_best = [r for r in rows if r["best"] == "1"][-1]
+    assert best.meta["frames"] == int(last_best["frames"])
+    assert best.meta["eval"]["distance_mean"] == pytest.approx(float(last_best["distance_mean"]), abs=1e-4)
+    assert run_dir / "checkpoints" / "best_eval.pt" in find_checkpoints(str(run_dir))  # pamrun eval sees it
+    events = EventAccumulator(str(run_dir / "tensorboard")).Reload()
+    assert {"eval/walk_pass_rate", "eval/stand_rate", "eval/distance_mean", "eval/eval_s"} <= set(events.Tags()["scalars"])
+    assert [e.step for e in events.Scalars("eval/distance_mean")] == [400, 800, 1200]
+
+
+def test_evaluation_is_deterministic_and_matches_pamrun_eval(tmp_path, cfg):
+    """The evaluator's numbers for an actor are pamrun eval's for the same agent file."""
+    from pamrun.agents import make_actor
+    from pamrun.checkpoints import agent_record, load_agent
+    from pamrun.evaluate import TrainingEvaluator, aggregate, env_kwargs, evaluate_agents
+
+    torch.manual_seed(0)
+    cfg.train.eval_episodes, cfg.eval.episodes, cfg.eval.episode_s, cfg.eval.walk_duration_s = 3, 3, 2.0, 2.0
+    actor = make_actor(cfg.algo, 43, 10).module
+    evaluator = TrainingEvaluator(cfg)
+    first, again = evaluator(actor), evaluator(actor)
+    assert {k: v for k, v in first.items() if k != "eval_s"} == {k: v for k, v in again.items() if k != "eval_s"}
+    torch.save(agent_record(actor.state_dict(), cfg, {}), tmp_path / "a.pt")
+    agent = load_agent(tmp_path / "a.pt")
+    episodes = evaluate_agents([agent], [env_kwargs(agent, cfg)], 3, cfg.eval.seed, workers=1)[0]
+    reference = aggregate(episodes, cfg.eval)
+    assert first["distance_mean"] == pytest.approx(reference["distance_mean"], abs=1e-6)
+    assert first["duration_mean"] == pytest.approx(reference["duration_mean"])
+
+
+def test_stop_on_walk(tmp_path):
+    """With a walk test an untrained (standing) actor passes, the run stops at its first evaluation."""
+    run_dir = tmp_path / "walked"
+    proc = run_pamrun("train", *TINY, "train.max_frames=2000", "train.eval_every_frames=200", "train.stop_on_walk=true",
+                      "eval.episode_s=0.5", "eval.walk_duration_s=0.5", "eval.walk_distance_m=0",
+                      f"hydra.run.dir={run_dir}")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    run = json.loads((run_dir / "run.json").read_text())
+    rows = list(csv.DictReader((run_dir / "evals.csv").open()))
+    assert run["status"] == "walked" and rows[-1]["walk_pass_rate"] == "1.0"
+    assert run["frames"] == int(rows[-1]["frames"]) < 2000
+    proc = run_pamrun("train", "train.stop_on_walk=true", "train.eval_every_frames=0", f"hydra.run.dir={tmp_path / 'x'}")
+    assert proc.returncode != 0 and "train.stop_on_walk" in proc.stderr + proc.stdout
+
+
+def test_resume_forgets_evaluations_after_the_checkpoint(tmp_path):
+    from pamrun.train import EvalLog
+
+    run_dir = tmp_path / "r"
+    proc = run_pamrun("train", *TINY, "train.eval_every_frames=200", "train.eval_episodes=1", f"hydra.run.dir={run_dir}")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert [r["frames"] for r in EvalLog.read(run_dir / "evals.csv")] == ["200", "400", "600"]
+    EvalLog.truncate(run_dir, 400)
+    assert [r["frames"] for r in EvalLog.read(run_dir / "evals.csv")] == ["200", "400"]
+    (run_dir / "evals.csv").write_text("frames,walk_pass_rate\nten,x\n")
+    with pytest.raises(SystemExit, match="evals.csv"):
+        EvalLog.truncate(run_dir, 400)

@@ -1,0 +1,99 @@
+"""Time to stand and time to walk: ``pamrun train`` on a preset, for several seeds.
+
+    python benchmarks/time_to_walk.py [--preset walk] [--seeds 0 1] [--minutes 120] [-- extra overrides]
+    python benchmarks/time_to_walk.py --runs outputs/.../run_a outputs/.../run_b   # read finished runs
+
+Each seed is one ``pamrun train train=<preset> seed=<s> train.max_minutes=<minutes>``, one
+after the other (a run uses the machine's cores). Its ``evals.csv`` (the evaluations during
+training: ``pamrun eval``'s walk test on 10 episodes with 0.01 rad start noise) gives the
+wall-clock time and the frames to two milestones:
+
+* **stand**: every evaluation episode lasts the full 10 s (``stand_rate`` = 1);
+* **walk**: the walk test passes (10 s, no fall, |y| <= 0.5 m, >= 7 m, in every episode).
+
+It prints one row per seed and the median over seeds (a milestone not reached counts as
+not reached, never as the budget), and appends one JSON line per seed to
+benchmarks/results/time_to_walk.jsonl.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+RESULTS = Path(__file__).parent / "results" / "time_to_walk.jsonl"
+
+
+def milestones(run: Path) -> dict:
+    """Wall time and frames to stand and to walk, and the best evaluation, from a run's files."""
+    rows = list(csv.DictReader((run / "evals.csv").open())) if (run / "evals.csv").exists() else []
+    info = json.loads((run / "run.json").read_text()) if (run / "run.json").exists() else {}
+    out = {"run": str(run), "evaluations": len(rows), "status": info.get("status"), "frames": info.get("frames"),
+           "wall_time_s": info.get("wall_time_s"), "command": info.get("command"), "git_commit": info.get("git_commit")}
+    for name, column in (("stand", "stand_rate"), ("walk", "walk_pass_rate")):
+        first = next((r for r in rows if float(r[column]) >= 1.0), None)
+        out[f"{name}_s"] = float(first["wall_time_s"]) if first else None
+        out[f"{name}_frames"] = int(first["frames"]) if first else None
+    for key in ("stand_rate", "walk_pass_rate", "distance_mean", "duration_mean"):
+        out[f"best_{key}"] = max((float(r[key]) for r in rows), default=None)
+    return out
+
+
+def train(preset: str, seed: int, minutes: float, extra: list[str], root: Path) -> Path:
+    run = root / f"{preset}-seed{seed}"
+    cmd = [sys.executable, "-m", "pamrun.cli", "train", f"train={preset}", f"seed={seed}",
+           f"train.max_minutes={minutes}", *extra, f"hydra.run.dir={run}"]
+    print("$", " ".join(cmd[2:]), flush=True)
+    with (root / f"{preset}-seed{seed}.log").open("w") as log:
+        subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, check=False)
+    return run
+
+
+def fmt(seconds: float | None, frames: int | None) -> str:
+    return "not reached" if seconds is None else f"{seconds / 60:6.1f} min, {frames:>8,} frames"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--preset", default="walk", help="train=<preset>")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    parser.add_argument("--minutes", type=float, default=120.0, help="wall-clock budget per seed")
+    parser.add_argument("--root", type=Path, default=Path("outputs/time_to_walk"))
+    parser.add_argument("--runs", type=Path, nargs="+", help="summarise these finished runs instead of training")
+    parser.add_argument("--device", default=f"{os.cpu_count()}-core CPU ({platform.machine()})",
+                        help="what the runs ran on, for the record")
+    parser.add_argument("extra", nargs="*", help="more overrides for pamrun train (after --)")
+    args = parser.parse_args()
+    if args.runs:
+        runs = args.runs
+    else:
+        args.root.mkdir(parents=True, exist_ok=True)
+        runs = [train(args.preset, s, args.minutes, args.extra, args.root) for s in args.seeds]
+    results = [milestones(r) for r in runs]
+    stamp = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "device": args.device, "cpu_count": os.cpu_count()}
+    print(f"{'run':<40} {'stand':>28} {'walk':>28} {'best distance':>14} {'best stand':>10}")
+    for r in results:
+        dist = "n/a" if r["best_distance_mean"] is None else f"{r['best_distance_mean']:.2f} m"
+        stand = "n/a" if r["best_stand_rate"] is None else f"{r['best_stand_rate']:.0%}"
+        print(f"{Path(r['run']).name:<40} {fmt(r['stand_s'], r['stand_frames']):>28} "
+              f"{fmt(r['walk_s'], r['walk_frames']):>28} {dist:>14} {stand:>10}")
+    for name in ("stand", "walk"):
+        reached = [r[f"{name}_s"] for r in results if r[f"{name}_s"] is not None]
+        median = f"{statistics.median(reached) / 60:.1f} min" if len(reached) == len(results) else "not every seed"
+        print(f"{name}: reached by {len(reached)}/{len(results)} seeds; median {median}")
+    RESULTS.parent.mkdir(exist_ok=True)
+    with RESULTS.open("a") as fh:
+        for r in results:
+            fh.write(json.dumps({**stamp, **r}) + "\n")
+
+
+if __name__ == "__main__":
+    main()
