@@ -1,25 +1,34 @@
 """Environment steps per second vs bare MuJoCo stepping of the same model.
 
-    python benchmarks/env_step.py [--seconds 5] [--presets sized thesis]
+    python benchmarks/env_step.py [--seconds 5] [--repeats 5] [--presets sized thesis]
 
 Prints, per muscle preset, control steps/s of PamWalker-v0 with random actions and, in the same run, the
 rate of bare ``mj_step`` on the same model with the same number of physics substeps
-per control step and no muscle computation; their ratio is the muscle model's cost.
-Results are appended to benchmarks/results/env_step.jsonl.
+per control step and no muscle computation; their ratio is the muscle model's (and the
+env's Python's) cost. The sized preset (kinematic coupling) is measured with both
+``muscle.kernel=numba`` (the compiled muscle step, compiled or loaded from its cache before
+timing) and ``numpy`` (the reference); the thesis coupling always uses numpy.
+
+Each measurement is repeated ``--repeats`` times, env and bare alternating so that a change
+of machine load hits both; the median and the range (min-max) of the env rate, the bare
+rate and their ratio (per env/bare pair) are printed and appended to
+benchmarks/results/env_step.jsonl.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
+import statistics
 import time
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
-from pamrun.config import preset
+from pamrun.config import MuscleConfig, preset
 from pamrun.env import PamWalkerEnv
 
 
@@ -50,35 +59,69 @@ def bare_rate(env: PamWalkerEnv, seconds: float) -> float:
     return steps / (time.perf_counter() - start)
 
 
+def warm_up(env: PamWalkerEnv) -> float:
+    """A few steps before timing (the numba kernel is compiled or loaded on its first call);
+    returns their seconds."""
+    start = time.perf_counter()
+    env.reset(seed=0)
+    for _ in range(5):
+        env.step(np.zeros(env.n_actions, dtype=np.float32))
+    return time.perf_counter() - start
+
+
+def spread(values: list[float]) -> tuple[float, float, float]:
+    return min(values), statistics.median(values), max(values)
+
+
+def measure(name: str, kernel: str, seconds: float, repeats: int) -> dict:
+    env = PamWalkerEnv(muscle={**preset("muscle", name), "kernel": kernel})
+    used = "numba" if env.drive._kernel is not None else "numpy"  # the thesis coupling is numpy only
+    ready_s = warm_up(env)
+    rates_env, rates_bare, ratios = [], [], []
+    for _ in range(repeats):  # alternating, so that load drift hits both
+        rates_env.append(env_rate(env, seconds))
+        rates_bare.append(bare_rate(env, seconds))
+        ratios.append(rates_env[-1] / rates_bare[-1])
+    env.close()
+    (e_lo, e_med, e_hi), (b_lo, b_med, b_hi) = spread(rates_env), spread(rates_bare)
+    r_lo, r_med, r_hi = spread(ratios)
+    label = f"{name} ({env.muscle_cfg.coupling}, {used})"
+    print(f"{label:>26}: env {e_med:7.1f} [{e_lo:7.1f}-{e_hi:7.1f}] control steps/s | bare MuJoCo {b_med:7.1f} "
+          f"[{b_lo:7.1f}-{b_hi:7.1f}] ({env.n_substeps} x {env.model.opt.timestep * 1000:.1f} ms) | "
+          f"ratio {r_med:.3f} [{r_lo:.3f}-{r_hi:.3f}]  (warm-up {ready_s:.2f} s)")
+    return {
+        "preset": name,
+        "coupling": env.muscle_cfg.coupling,
+        "kernel": used,
+        "physics_dt_s": env.model.opt.timestep,
+        "substeps": env.n_substeps,
+        "seconds": seconds,
+        "repeats": repeats,
+        "env_steps_per_s": round(e_med, 1),  # medians; the spread below
+        "bare_steps_per_s": round(b_med, 1),
+        "ratio": round(r_med, 3),
+        "env_steps_per_s_range": [round(e_lo, 1), round(e_hi, 1)],
+        "bare_steps_per_s_range": [round(b_lo, 1), round(b_hi, 1)],
+        "ratio_range": [round(r_lo, 3), round(r_hi, 3)],
+        "warm_up_s": round(ready_s, 3),
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=5.0)
+    parser.add_argument("--seconds", type=float, default=5.0, help="length of one measurement")
+    parser.add_argument("--repeats", type=int, default=5, help="measurements per rate (env and bare alternating)")
     parser.add_argument("--presets", nargs="+", default=["sized", "thesis"])
     args = parser.parse_args()
+    print(f"median [min-max] of {args.repeats} x {args.seconds:g} s each")
     results = []
     for name in args.presets:
-        env = PamWalkerEnv(muscle=preset("muscle", name))
-        coupling = f"{name} ({env.muscle_cfg.coupling})"
-        rate_env = env_rate(env, args.seconds)
-        rate_bare = bare_rate(env, args.seconds)
-        row = {
-            "preset": name,
-            "coupling": env.muscle_cfg.coupling,
-            "physics_dt_s": env.model.opt.timestep,
-            "substeps": env.n_substeps,
-            "env_steps_per_s": round(rate_env, 1),
-            "bare_steps_per_s": round(rate_bare, 1),
-            "ratio": round(rate_env / rate_bare, 3),
-        }
-        results.append(row)
-        print(
-            f"{coupling:>18}: env {rate_env:8.1f} control steps/s | bare MuJoCo {rate_bare:8.1f} "
-            f"({env.n_substeps} x {env.model.opt.timestep * 1000:.1f} ms) | ratio {rate_env / rate_bare:.2f}"
-        )
-        env.close()
+        coupling = preset("muscle", name).get("coupling", MuscleConfig().coupling)
+        for kernel in (("numba", "numpy") if coupling == "kinematic" else ("numpy",)):
+            results.append(measure(name, kernel, args.seconds, args.repeats))
     out = Path(__file__).parent / "results" / "env_step.jsonl"
     out.parent.mkdir(exist_ok=True)
-    stamp = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "machine": platform.node(), "cpu_count": __import__("os").cpu_count()}
+    stamp = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "machine": platform.node(), "cpu_count": os.cpu_count()}
     with out.open("a") as fh:
         for row in results:
             fh.write(json.dumps({**stamp, **row}) + "\n")

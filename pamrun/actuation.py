@@ -34,6 +34,10 @@ so every contraction stays inside the force polynomial's fitted range (>= -3 %);
 contracting muscle may go slack near a limit. ``muscle=thesis`` (c_rest = 6.5 %,
 c_min = 0 %) gives the radii the thesis model has always used: 21.5 mm at hip and ankle
 pitch, 43.0 mm hip roll, 10.8 mm knee, 27.7 mm ankle roll.
+
+Kernel (``muscle.kernel``): the kinematic coupling's muscle step runs as one compiled numba
+call (``numba``, :mod:`pamrun.kernels`) or as the numpy code below (``numpy``, the
+reference); both give the same results to float rounding. The thesis coupling is numpy only.
 """
 
 from __future__ import annotations
@@ -85,7 +89,13 @@ def n_actions(muscle: MuscleConfig) -> int:
 
 
 class MuscleDrive:
-    """All 20 muscles of the robot, stepped together with numpy."""
+    """All 20 muscles of the robot, stepped together.
+
+    ``muscle.kernel=numba`` (the default) steps the kinematic coupling with one compiled call
+    per muscle step (:mod:`pamrun.kernels`); ``numpy`` is the reference it matches to float
+    rounding. The thesis coupling always uses numpy. Either way the state lives where the
+    numpy code keeps it (``pairs.regulator.pressure_kpa``, ``contraction_pct``, ``voltage_v``).
+    """
 
     def __init__(self, muscle: MuscleConfig, body: BodyConfig):
         from pamrun.config import check_muscle_stretch
@@ -104,6 +114,56 @@ class MuscleDrive:
         self._lever = self.force_scale * self.radius_m  # k r [m]
         self._contraction = np.zeros((n, 2))
         self._coef: np.ndarray | None = None
+        self._damping = np.zeros(n)
+        self._kernel = None
+        if self.kinematic and muscle.kernel == "numba":
+            self._init_kernel()
+
+    def _init_kernel(self) -> None:
+        """Constants and buffers of the compiled step (pamrun.kernels), from this drive's own."""
+        from pamrun import kernels as K
+
+        pairs, reg, n = self.pairs, self.cfg.regulator, len(self.radius_m)
+        params = np.zeros(K.N_PARAMS)
+        for index, value in ((K.P_VMIN, reg.min_voltage_v), (K.P_VMAX, reg.max_voltage_v),
+                             (K.P_GAIN, reg.gain_kpa_per_v), (K.P_PMIN, reg.min_pressure_kpa),
+                             (K.P_PMAX, reg.max_pressure_kpa), (K.P_LAG, reg.lag_s),
+                             (K.P_MUSCLE_MAX, self.cfg.max_pressure_kpa), (K.P_LAW_MAX, pairs.law.max_pressure_kpa),
+                             (K.P_REST, self.cfg.kinematic_rest_contraction_pct), (K.P_TAU, self.cfg.tau_s),
+                             (K.P_LENGTH_SCALE, pairs.dynamics.length_scale)):
+            params[index] = value
+        self._params = params
+        self._law = np.ascontiguousarray(pairs.law.coefficients, dtype=float)
+        self._edges = np.ascontiguousarray(pairs.dynamics.spring.edges_kpa, dtype=float)
+        self._springs = np.ascontiguousarray(pairs.dynamics.spring.values_n_per_m, dtype=float)
+        joint = np.empty((4, n))
+        joint[K.J_PCT_PER_RAD], joint[K.J_NEUTRAL] = self._pct_per_rad, self._neutral
+        joint[K.J_LEVER], joint[K.J_RADIUS] = self._lever, self.radius_m
+        self._joint = joint
+        self._coef_buf = np.zeros((6, n, 2))
+        self._angle, self._torque, self._stiffness = np.zeros(n), np.zeros(n), np.zeros(n)
+        self._lag_dt: float | None = None
+        self._lag_factor = 0.0
+        self._kernel = K
+
+    def _kernel_inputs(self, dt_s: float) -> tuple:
+        """The regulator's side of a compiled step: (voltage, new voltage?, no coefficients yet?,
+        lag factor), keeping Regulator.step's bookkeeping (a new voltage array -> a new target)."""
+        reg = self.pairs.regulator
+        voltage = self.voltage_v
+        new = voltage is not reg._voltage
+        if new:
+            if np.shape(voltage) != self._contraction.shape:
+                raise ValueError(f"regulator voltages must have shape {self._contraction.shape}, "
+                                 f"got {np.shape(voltage)}")
+            reg._voltage = voltage
+            if not isinstance(reg._target, np.ndarray) or reg._target.shape != voltage.shape:
+                reg._target = np.zeros(voltage.shape)
+        if dt_s != self._lag_dt:
+            lag = self.cfg.regulator.lag_s
+            self._lag_factor = float(-np.expm1(-dt_s / lag)) if lag > 0 else 0.0
+            self._lag_dt = dt_s
+        return voltage, new, self._coef is None, self._lag_factor
 
     def reset(self) -> None:
         """Both muscles of every pair at V0's pressure and their rest contraction."""
@@ -115,11 +175,17 @@ class MuscleDrive:
         self._coef = None
 
     def voltages_v(self, action: np.ndarray) -> np.ndarray:
-        """Actions in [-1, 1] -> (10, 2) regulator voltages (see ``muscle.command``)."""
-        a = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
-        if self.n_actions == len(self.radius_m):
-            return self.pairs.voltages_v(a)
-        return self.cfg.v0_v + self.cfg.dv_max_v * a.reshape(len(self.radius_m), 2)
+        """Actions in [-1, 1] -> (10, 2) regulator voltages (see ``muscle.command``).
+
+        The values of ``pairs.voltages_v`` (V0 + dV a, V0 - dV a), bit for bit, without its
+        np.clip and np.stack, whose Python wrappers cost more than the arithmetic."""
+        a = np.maximum(np.asarray(action, dtype=float), -1.0)  # np.clip(a, -1, 1), NaN kept
+        np.minimum(a, 1.0, out=a)
+        n, v0 = len(self.radius_m), self.cfg.v0_v
+        if self.n_actions == n:
+            # a * -dV is exactly -(dV a), and V0 + -(dV a) is V0 - dV a
+            return v0 + np.multiply.outer(a, (self.cfg.dv_max_v, -self.cfg.dv_max_v))
+        return v0 + self.cfg.dv_max_v * a.reshape(n, 2)
 
     def set_action(self, action: np.ndarray) -> None:
         """Hold the regulator voltages for this action until the next call."""
@@ -138,6 +204,14 @@ class MuscleDrive:
         muscle step instead is unstable once K / inertia is large (a stiff ankle pair on
         a light foot), since the muscle spring would act only every muscle step.
         """
+        if self._kernel is not None:
+            reg = self.pairs.regulator
+            self._kernel.muscle_apply(*self._kernel_inputs(dt_s), self._params, reg._target, reg.pressure_kpa,
+                                      self._law, self._edges, self._springs, self._joint, data.qpos, qpos_idx,
+                                      self._angle, self._contraction, self._coef_buf, self._damping, self._torque,
+                                      self._stiffness, data.ctrl, model.actuator_biasprm)
+            self._coef = self._coef_buf
+            return
         angle, velocity = data.qpos[qpos_idx], data.qvel[qvel_idx]
         if not self.kinematic:
             data.ctrl[:] = self.torques_nm(angle, velocity, dt_s)
@@ -146,6 +220,32 @@ class MuscleDrive:
         data.ctrl[:] = torque + stiffness * angle
         model.actuator_biasprm[:, 1] = -stiffness
         model.actuator_biasprm[:, 2] = -self._damping
+
+    def advance(self, model, data, qpos_idx: np.ndarray, qvel_idx: np.ndarray, dt_s: float, muscle_steps: int,
+                physics_steps: int) -> None:
+        """``muscle_steps`` times: :meth:`apply` for dt_s, then ``physics_steps`` MuJoCo steps.
+
+        The same as that loop, call for call; with the compiled kernel the arguments are
+        gathered once, so between MuJoCo steps there is one kernel call and no other Python.
+        """
+        from mujoco import mj_step
+
+        if self._kernel is None:
+            for _ in range(muscle_steps):
+                self.apply(model, data, qpos_idx, qvel_idx, dt_s)
+                mj_step(model, data, physics_steps)
+            return
+        voltage, new, stale, lag_factor = self._kernel_inputs(dt_s)
+        reg, kernel = self.pairs.regulator, self._kernel.muscle_apply
+        state = (self._params, reg._target, reg.pressure_kpa, self._law, self._edges, self._springs, self._joint,
+                 data.qpos, qpos_idx, self._angle, self._contraction, self._coef_buf, self._damping, self._torque,
+                 self._stiffness, data.ctrl, model.actuator_biasprm)
+        for k in range(muscle_steps):
+            # after the first call the voltage is the regulator's and the coefficients exist,
+            # as apply() would find them
+            kernel(voltage, new and k == 0, stale and k == 0, lag_factor, *state)
+            self._coef = self._coef_buf
+            mj_step(model, data, physics_steps)
 
     def torques_nm(self, angle_rad: np.ndarray, velocity_rad_s: np.ndarray, dt_s: float) -> np.ndarray:
         """Advance the muscles by dt_s and return the (10,) joint torques [N m]."""
@@ -161,6 +261,16 @@ class MuscleDrive:
         """Step the regulator; the pairs' torque k (F1 - F2) r [N m] at ``angle_rad`` and its
         stiffness -dT/dtheta [N m/rad] (a slack muscle adds none)."""
         pairs = self.pairs
+        if self._kernel is not None:
+            angle = np.asarray(angle_rad, dtype=float)
+            if angle.shape != self._angle.shape:
+                raise ValueError(f"joint angles must have shape {self._angle.shape}, got {angle.shape}")
+            reg = pairs.regulator
+            self._kernel.muscle_step(*self._kernel_inputs(dt_s), self._params, reg._target, reg.pressure_kpa,
+                                     self._law, self._edges, self._springs, self._joint, angle, self._contraction,
+                                     self._coef_buf, self._damping, self._torque, self._stiffness)
+            self._coef = self._coef_buf
+            return self._torque.copy(), self._stiffness.copy()
         changed = pairs.regulator.step(self.voltage_v, dt_s)
         if changed or self._coef is None:
             pressure = pairs.pressure_kpa

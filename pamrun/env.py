@@ -58,6 +58,7 @@ or the physics state is not finite (``info["physics_error"]`` is then True).
 from __future__ import annotations
 
 import math
+import operator
 import os
 from dataclasses import asdict, is_dataclass
 from typing import Any
@@ -102,6 +103,9 @@ _INSTABILITY_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQVEL,
     mujoco.mjtWarning.mjWARN_BADQACC,
 )
+# What one step reads of the state (PamWalkerEnv._state): qpos, qvel, and the torso's 12 values.
+_State = tuple[list[float], list[float], tuple[float, ...]]
+_unstable_counts = operator.itemgetter(*(int(w) for w in _INSTABILITY_WARNINGS))  # from warning.number
 
 
 def as_config(value: Any, cls: type) -> Any:
@@ -118,6 +122,12 @@ def as_config(value: Any, cls: type) -> Any:
         value = asdict(value)
     merged = OmegaConf.merge(OmegaConf.structured(cls), OmegaConf.create(dict(value)))
     return to_object(merged)
+
+
+def _all_finite(*values: list[float]) -> bool:
+    """Every value finite. A finite sum proves it (NaN and inf propagate through a sum); only a
+    non-finite sum, which may be overflow, needs the value-by-value check."""
+    return math.isfinite(sum(map(sum, values))) or all(math.isfinite(x) for v in values for x in v)
 
 
 def quat_to_euler(quat_wxyz: np.ndarray) -> tuple[float, float, float]:
@@ -176,6 +186,8 @@ class PamWalkerEnv(gym.Env):
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (OBS_BASE + self.n_actions,), np.float32)
         self.observation_structure = observation_structure(self.n_actions)
         self._prev_action = np.zeros(self.n_actions)
+        self._joint_angles = operator.itemgetter(*self._qpos_idx.tolist())  # from qpos as a list
+        self._joint_velocities = operator.itemgetter(*self._qvel_idx.tolist())
         self._steps = 0
         self._x0 = 0.0
         self._renderer: mujoco.Renderer | None = None
@@ -198,32 +210,32 @@ class PamWalkerEnv(gym.Env):
         self._prev_action = np.zeros(self.n_actions)
         self._steps = 0
         self._x0 = float(d.qpos[0])
-        feet = self.foot_forces_n()
-        return self._observation(feet), self._info(False, feet, self._fell())
+        feet, state = self.foot_forces_n(), self._state()
+        return self._observation(feet, state), self._info(False, feet, self._fell(state), state)
 
     def step(self, action):
-        action = np.clip(np.asarray(action, dtype=np.float64).reshape(self.n_actions), -1.0, 1.0)
-        m, d = self.model, self.data
+        # np.clip(action, -1, 1) as two ufuncs (np.clip's Python wrapper costs more than both).
+        action = np.maximum(np.asarray(action, dtype=np.float64).reshape(self.n_actions), -1.0)
+        np.minimum(action, 1.0, out=action)
+        m, d, drive = self.model, self.data, self.drive
         dt, nstep = self.env_cfg.muscle_dt_s, self.n_physics_per_muscle
-        self.drive.set_action(action)
-        qi, vi = self._qpos_idx, self._qvel_idx
-        for _ in range(self.n_muscle_steps):
-            self.drive.apply(m, d, qi, vi, dt)
-            mujoco.mj_step(m, d, nstep)
+        drive.set_action(action)
+        drive.advance(m, d, self._qpos_idx, self._qvel_idx, dt, self.n_muscle_steps, nstep)  # apply, mj_step, ...
         self._steps += 1
         self._prev_action = action
 
         # MuJoCo resets the state itself when it meets NaN/Inf, so count its warnings too.
-        unstable = sum(d.warning[w].number for w in _INSTABILITY_WARNINGS)
-        physics_error = unstable > 0 or not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all())
+        state = self._state()
+        unstable = sum(_unstable_counts(d.warning.number.tolist()))
+        physics_error = unstable > 0 or not _all_finite(state[0], state[1])
         feet = self.foot_forces_n()
-        obs = self._observation(feet)
+        obs = self._observation(feet, state)
         if physics_error:
             obs = np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
-        reward, terms = self._reward(action, physics_error)
-        fell = physics_error or self._fell()
+        reward, terms = self._reward(action, physics_error, state)
+        fell = physics_error or self._fell(state)
         truncated = self._steps >= self.max_steps and not fell
-        info = self._info(physics_error, feet, fell)
+        info = self._info(physics_error, feet, fell, state)
         info["reward_terms"] = terms
         return obs, reward, fell, truncated, info
 
@@ -242,9 +254,13 @@ class PamWalkerEnv(gym.Env):
 
     # ------------------------------------------------------------------ pieces
 
-    def _torso_state(self) -> tuple[np.ndarray, tuple[float, float, float], np.ndarray, np.ndarray]:
+    def _state(self) -> _State:
+        """qpos and qvel as Python lists, and from them the torso's (x, y, z, roll, pitch, yaw,
+        vx, vy, vz, wx, wy, wz): read once per step for the observation, reward, fall check
+        and info (Python floats: cheaper than numpy scalars, and the same values)."""
         d = self.data
-        return d.qpos[0:3], quat_to_euler(d.qpos[3:7]), d.qvel[0:3], d.qvel[3:6]
+        q, v = d.qpos.tolist(), d.qvel.tolist()
+        return q, v, (*q[0:3], *quat_to_euler(q[3:7]), *v[0:6])
 
     def foot_forces_n(self) -> np.ndarray:
         """Normal ground force [N] under the right and left foot (MuJoCo touch sensors).
@@ -252,50 +268,43 @@ class PamWalkerEnv(gym.Env):
         Sensors are evaluated inside ``mj_step`` before integration, so the value lags the
         state by one physics step (1 ms).
         """
-        return self.data.sensordata[self._foot_sensor_adr].copy()
+        return self.data.sensordata[self._foot_sensor_adr]  # fancy indexing: a copy
 
-    def _observation(self, foot_force_n: np.ndarray) -> np.ndarray:
-        d = self.data
-        pos, (roll, pitch, yaw), lin_vel, ang_vel = self._torso_state()
-        obs = np.concatenate(
-            [
-                [pos[1], pos[2], roll, pitch, yaw],
-                lin_vel,
-                ang_vel,
-                d.qpos[self._qpos_idx],
-                d.qvel[self._qvel_idx],
-                foot_force_n / self.weight_n,
-                self._prev_action,
-            ]
-        )
-        return obs.astype(np.float32)
+    def _observation(self, foot_force_n: np.ndarray, state: _State | None = None) -> np.ndarray:
+        q, v, (_, y, z, roll, pitch, yaw, *velocity) = self._state() if state is None else state
+        right, left = foot_force_n.tolist()
+        # float64 values rounded once to float32, as np.concatenate(...).astype(np.float32) would
+        return np.array([y, z, roll, pitch, yaw, *velocity, *self._joint_angles(q), *self._joint_velocities(v),
+                         right / self.weight_n, left / self.weight_n, *self._prev_action.tolist()], dtype=np.float32)
 
-    def _reward(self, action: np.ndarray, physics_error: bool) -> tuple[float, dict[str, float]]:
+    def _reward(self, action: np.ndarray, physics_error: bool, state: _State | None = None
+                ) -> tuple[float, dict[str, float]]:
         k, cfg = self.reward_cfg, self.env_cfg
         if physics_error:
             return 0.0, dict.fromkeys(REWARD_KEYS, 0.0)
-        pos, _, lin_vel, _ = self._torso_state()
+        _, y, z, _, _, _, vx, *_ = (self._state() if state is None else state)[2]
         terms = {  # keyed by the weight that scales each term (Table 9.3)
-            "kvx": k.kvx * float(lin_vel[0]),
-            "ky": -k.ky * float(pos[1]) ** 2,
-            "kz": -k.kz * (float(pos[2]) - self.z0) ** 2,
-            "kv": -k.kv * float(np.sum(action**2)),
+            "kvx": k.kvx * vx,
+            "ky": -k.ky * y**2,
+            "kz": -k.kz * (z - self.z0) ** 2,
+            "kv": -k.kv * float(np.add.reduce(action * action)),  # = np.sum(action**2), bit for bit
             "kt": k.kt * cfg.control_dt_s / cfg.episode_s,
         }
         return float(sum(terms.values())), terms
 
-    def _fell(self) -> bool:
+    def _fell(self, state: _State | None = None) -> bool:
         cfg = self.env_cfg
-        pos, angles, _, _ = self._torso_state()
+        _, y, z, roll, pitch, yaw, *_ = (self._state() if state is None else state)[2]
         return bool(
-            pos[2] < cfg.fall_height_ratio * self.z0
-            or abs(pos[1]) > cfg.max_lateral_m
-            or max(abs(a) for a in angles) >= cfg.max_tilt_rad
+            z < cfg.fall_height_ratio * self.z0
+            or abs(y) > cfg.max_lateral_m
+            or max(abs(roll), abs(pitch), abs(yaw)) >= cfg.max_tilt_rad
         )
 
-    def _info(self, physics_error: bool, foot_force_n: np.ndarray, fell: bool) -> dict[str, Any]:
-        d = self.data
-        x, y, z = (np.float64(v) for v in d.qpos[0:3])  # numpy scalars: TorchRL's info readers need .dtype
+    def _info(self, physics_error: bool, foot_force_n: np.ndarray, fell: bool, state: _State | None = None
+              ) -> dict[str, Any]:
+        torso = (self._state() if state is None else state)[2]
+        x, y, z = np.float64(torso[0]), np.float64(torso[1]), np.float64(torso[2])  # TorchRL's info readers need .dtype
         return {
             "x": x,
             "y": y,

@@ -210,3 +210,34 @@ def test_torchrl_gymenv_and_parallel_env():
     td = penv.rollout(3)
     assert td["observation"].shape == (2, 3, 43)
     penv.close()
+
+
+def _episode_record(steps: int = 200, **muscle) -> dict[str, np.ndarray]:
+    """Observations, rewards, pressures and contractions of ``steps`` control steps with fixed
+    random actions (reset after a fall, which is deterministic without reset noise)."""
+    e = PamWalkerEnv(muscle=muscle)
+    actions = np.random.default_rng(7).uniform(-1, 1, (steps, e.n_actions)).astype(np.float32)
+    out = {"obs": [], "reward": [], "pressure": [], "contraction": [], "end": []}
+    obs, info = e.reset(seed=0)
+    for action in actions:
+        obs, reward, terminated, truncated, info = e.step(action)
+        for key, value in (("obs", obs), ("reward", reward), ("pressure", info["pressure_kpa"]),
+                           ("contraction", info["contraction_pct"]), ("end", terminated or truncated)):
+            out[key].append(value)
+        if terminated or truncated:
+            e.reset()
+    kernel = e.drive._kernel
+    e.close()
+    return {"compiled": kernel is not None, **{k: np.array(v, dtype=float) for k, v in out.items()}}
+
+
+@pytest.mark.parametrize("muscle", [{}, {"command": "independent"}, {"regulator": {"lag_s": 0.0}}],
+                         ids=["default", "independent", "no_lag"])
+def test_compiled_muscle_kernel_matches_numpy_reference(muscle):
+    """muscle.kernel=numba (the default) and numpy run the same episodes to float rounding."""
+    fast, ref = _episode_record(**muscle, kernel="numba"), _episode_record(**muscle, kernel="numpy")
+    assert fast.pop("compiled") and not ref.pop("compiled")
+    for key in ref:
+        np.testing.assert_allclose(fast[key], ref[key], rtol=1e-9, atol=1e-9, err_msg=key)
+    # a real test: the pressures move (lag and clips at work) and the robot moves
+    assert np.ptp(ref["pressure"]) > 300 and np.ptp(ref["obs"][:, 11:21]) > 0.3

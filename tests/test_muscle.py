@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pamrun.config import MuscleConfig, PairConfig, RegulatorConfig
+from pamrun.config import MuscleConfig, PairConfig, RegulatorConfig, to_object
 from pamrun.muscle import (
     AntagonisticPairs,
     FirstOrderPairDynamics,
@@ -149,3 +149,66 @@ def test_pair_command_and_torque():
     # Thesis coupling: once settled, both muscles sit near their zero-force contraction, so
     # the steady torque is only S * x * r (a finding reported for the robot, issue 3).
     assert abs(pairs.torque_nm(np.full(3, 0.05))[1]) < 0.5
+
+
+# --------------------------------------------------------------------------- compiled kinematic step
+
+
+def _drives(**muscle):
+    """The same robot's drive with the compiled kernel and with the numpy reference, one model each."""
+    from pamrun.env import PamWalkerEnv
+
+    envs = [PamWalkerEnv(muscle={**muscle, "kernel": k}) for k in ("numba", "numpy")]
+    assert envs[0].drive._kernel is not None and envs[1].drive._kernel is None  # two paths, really
+    for e in envs:
+        e.reset(seed=0)
+    return envs
+
+
+@pytest.mark.parametrize("lag_s", [0.05, 0.0])
+def test_compiled_muscle_step_matches_numpy_step_by_step(lag_s):
+    """Voltages past both clips (0-10 V, and pressures above the muscle's 600 kPa), new and held
+    commands, angles out to the limits (slack muscles), a dt of 0: the kernel's every output
+    is the reference's to float rounding."""
+    fast, ref = _drives(regulator={"lag_s": lag_s})
+    outputs = {"ctrl": lambda e: e.data.ctrl, "bias": lambda e: e.model.actuator_biasprm[:, :3],
+               "pressure": lambda e: e.drive.pressure_kpa, "contraction": lambda e: e.drive.contraction_pct,
+               "regulator": lambda e: e.drive.pairs.regulator.pressure_kpa}
+    rng = np.random.default_rng(3)
+    lo, hi = ref.model.jnt_range[ref.model.dof_jntid[ref._qvel_idx]].T
+    slack, lowest, highest = 0, np.inf, -np.inf
+    for k in range(60):
+        if k % 4 == 0:  # a new command every fourth step, held in between
+            voltage = rng.uniform(-2.0, 12.0, (10, 2))
+        angle = rng.uniform(lo - 0.05, hi + 0.05)
+        dt = 0.0 if k % 7 == 3 else 0.005
+        for e in (fast, ref):
+            e.drive.set_voltages(voltage)
+            e.data.qpos[e._qpos_idx] = angle
+            e.drive.apply(e.model, e.data, e._qpos_idx, e._qvel_idx, dt)
+        for name, get in outputs.items():
+            np.testing.assert_allclose(get(fast), get(ref), rtol=1e-12, atol=1e-9, err_msg=f"{name}, step {k}")
+        velocity = rng.uniform(-2, 2, 10)
+        np.testing.assert_allclose(fast.drive.torques_nm(angle, velocity, 0.0),
+                                   ref.drive.torques_nm(angle, velocity, 0.0), rtol=1e-12, atol=1e-9)
+        force = ref.drive.pairs.law.force_and_slope(ref.drive._coef, ref.drive.contraction_pct)[0]
+        slack += int((force <= 0).sum())
+        pressure = ref.drive.pairs.regulator.pressure_kpa
+        lowest, highest = min(lowest, pressure.min()), max(highest, pressure.max())
+    assert highest > 650 and lowest < 200  # past the muscle's 600 kPa (the force law's clamp), and low
+    if lag_s == 0:
+        assert (lowest, highest) == (10.0, 1000.0)  # the regulator's own clips
+    assert slack > 0  # and some muscles went slack
+
+
+def test_kernel_must_be_known():
+    from pamrun.config import ConfigError
+    from tests.conftest import compose_config
+
+    assert MuscleConfig().kernel == "numba"
+    with pytest.raises(ConfigError) as err:
+        MuscleConfig(kernel="foo")
+    assert err.value.key == "kernel" and "numba, numpy" in str(err.value)
+    with pytest.raises(ConfigError) as err:
+        to_object(compose_config("muscle.kernel=foo"))
+    assert err.value.key == "muscle.kernel"

@@ -109,6 +109,8 @@ COUPLINGS = ("thesis", "kinematic")
 FORCE_LAW_NAMES = ("thesis_polynomial",)
 DYNAMICS_NAMES = ("first_order",)
 COMMANDS = ("antagonistic", "independent")
+# How MuscleDrive steps the kinematic coupling: pamrun/kernels.py (compiled) or numpy (the reference).
+KERNELS = ("numba", "numpy")
 
 
 @dataclass
@@ -195,6 +197,9 @@ class MuscleConfig:
     * ``command``: ``antagonistic`` is the thesis' 10 actions, V1,2 = V0 +- dV a (§9.5);
       ``independent`` gives 20 actions, V = V0 + dV a per muscle, so a policy sets each
       pair's co-contraction (stiffness) as well as its torque. Zero action is V0 in both.
+    * ``kernel``: how the kinematic coupling's muscle step is computed, ``numba`` (one compiled
+      call per muscle step, pamrun/kernels.py) or ``numpy`` (the reference, several times
+      slower); both give the same results to float rounding. The thesis coupling is numpy only.
     """
 
     force_law: str = "thesis_polynomial"  # F(x, P) of Table 8.4
@@ -220,6 +225,7 @@ class MuscleConfig:
     min_contraction_pct: float = -1.0  # the most a muscle may be stretched [%]; >= -3
     regulator: RegulatorConfig = field(default_factory=RegulatorConfig)  # VPPM pressure regulator
     spring: SpringConfig = field(default_factory=SpringConfig)  # spring table S(P) of the thesis dynamics
+    kernel: str = "numba"  # numba: fused compiled muscle step (kinematic coupling); numpy: the reference; same results
 
     def __post_init__(self) -> None:
         _require(self.force_law in FORCE_LAW_NAMES, "force_law",
@@ -235,6 +241,7 @@ class MuscleConfig:
         _require(-3.0 <= self.rest_contraction_pct < 30.0, "rest_contraction_pct", "must lie in [-3, 30) %")
         _require(self.coupling in COUPLINGS, "coupling", f"unknown {self.coupling!r}; known: {', '.join(COUPLINGS)}")
         _require(self.command in COMMANDS, "command", f"unknown {self.command!r}; known: {', '.join(COMMANDS)}")
+        _require(self.kernel in KERNELS, "kernel", f"unknown {self.kernel!r}; known: {', '.join(KERNELS)}")
         _require(-3.0 <= self.min_contraction_pct <= 0.0, "min_contraction_pct",
                  f"must lie in [-3, 0] % (the force law is fitted down to -3 %), got {self.min_contraction_pct}")
         _require(self.min_contraction_pct < self.kinematic_rest_contraction_pct <= 25.0,
