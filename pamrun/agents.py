@@ -164,8 +164,9 @@ class Learner:
     def actor_loss(self, obs) -> torch.Tensor:
         return -self.critics[0](obs, self.actor.module(obs)).mean()
 
-    def update(self, sample) -> None:
-        """One update on a replay sample (a TensorDict with TorchRL's transition keys)."""
+    def update(self, sample, actor: bool = True) -> None:
+        """One update on a replay sample (a TensorDict with TorchRL's transition keys); with
+        ``actor=False`` only the critics learn (the targets follow on the actor's schedule)."""
         obs, action = sample["observation"], sample["action"]
         nxt = sample["next"]
         critic_loss = self.critic_loss(obs, action, nxt["reward"], nxt["observation"], nxt["terminated"])
@@ -173,7 +174,9 @@ class Learner:
         critic_loss.backward()
         nn.utils.clip_grad_norm_(self.critic_params, self.cfg.grad_clip)
         self.critic_opt.step()
-        if self.updates % self.cfg.actor_update_every == 0:
+        if self.updates % self.cfg.actor_update_every == 0 and not actor:
+            self.soft_update()
+        elif self.updates % self.cfg.actor_update_every == 0:
             for p in self.critic_params:  # the actor's gradient must not touch the critic
                 p.requires_grad_(False)
             actor_loss = self.actor_loss(obs)

@@ -37,12 +37,16 @@ Python per physics step.
 | 33-42 (33-52) | ``previous_action`` | the previous action (10 or 20 values) | 1 |
 
 ## Reward (thesis Table 9.3, config group ``reward``)
-r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf, with Vx the
-torso's forward velocity, y its lateral deviation, z - z0 its height change since reset
-and a_prev the action applied in this step (the "previous action" of the next
-observation). Each term is in ``info["reward_terms"]`` under the key of its weight
-(``kvx``: forward, ``ky``: lateral, ``kz``: height, ``kv``: effort, ``kt``: alive), so a
-term and the ``reward.<key>`` that scales it share one name.
+r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf - kda sum((a_prev - a_prev2)^2)
+- kfall [fell], with Vx the torso's forward velocity, y its lateral deviation, z - z0 its
+height change since reset, a_prev the action applied in this step (the "previous action"
+of the next observation) and a_prev2 the one before it (zero at reset). The last two terms
+are not the thesis' (their weights are 0 by default): ``kda`` penalises changes of the
+command, for the smoother gait the thesis asked for, and ``kfall`` is paid once, on the
+step that ends the episode by a fall. Each term is in ``info["reward_terms"]`` under the
+key of its weight (``kvx``: forward, ``ky``: lateral, ``kz``: height, ``kv``: effort,
+``kt``: alive, ``kda``: command change, ``kfall``: fall), so a term and the ``reward.<key>``
+that scales it share one name.
 
 ## Episode end
 Truncation after Tf = 10 s (400 steps). Termination when the torso falls below
@@ -222,7 +226,7 @@ class PamWalkerEnv(gym.Env):
         drive.set_action(action)
         drive.advance(m, d, self._qpos_idx, self._qvel_idx, dt, self.n_muscle_steps, nstep)  # apply, mj_step, ...
         self._steps += 1
-        self._prev_action = action
+        previous, self._prev_action = self._prev_action, action
 
         # MuJoCo resets the state itself when it meets NaN/Inf, so count its warnings too.
         state = self._state()
@@ -232,8 +236,8 @@ class PamWalkerEnv(gym.Env):
         obs = self._observation(feet, state)
         if physics_error:
             obs = np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
-        reward, terms = self._reward(action, physics_error, state)
         fell = physics_error or self._fell(state)
+        reward, terms = self._reward(action, physics_error, state, previous, fell)
         truncated = self._steps >= self.max_steps and not fell
         info = self._info(physics_error, feet, fell, state)
         info["reward_terms"] = terms
@@ -277,8 +281,8 @@ class PamWalkerEnv(gym.Env):
         return np.array([y, z, roll, pitch, yaw, *velocity, *self._joint_angles(q), *self._joint_velocities(v),
                          right / self.weight_n, left / self.weight_n, *self._prev_action.tolist()], dtype=np.float32)
 
-    def _reward(self, action: np.ndarray, physics_error: bool, state: _State | None = None
-                ) -> tuple[float, dict[str, float]]:
+    def _reward(self, action: np.ndarray, physics_error: bool, state: _State | None = None,
+                previous: np.ndarray | None = None, fell: bool = False) -> tuple[float, dict[str, float]]:
         k, cfg = self.reward_cfg, self.env_cfg
         if physics_error:
             return 0.0, dict.fromkeys(REWARD_KEYS, 0.0)
@@ -289,6 +293,9 @@ class PamWalkerEnv(gym.Env):
             "kz": -k.kz * (z - self.z0) ** 2,
             "kv": -k.kv * float(np.add.reduce(action * action)),  # = np.sum(action**2), bit for bit
             "kt": k.kt * cfg.control_dt_s / cfg.episode_s,
+            # beyond Table 9.3 (0 in the thesis): smoothness and a fall penalty
+            "kda": -k.kda * float(np.add.reduce((action - (action if previous is None else previous)) ** 2)),
+            "kfall": -k.kfall * float(fell),
         }
         return float(sum(terms.values())), terms
 

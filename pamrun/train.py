@@ -277,7 +277,8 @@ def train(dcfg: DictConfig) -> None:
             saved = record_episodes(tracker.add(batch), cfg, learner, log, frames, clock.seconds(), saved, ckpt_dir)
             learn_frames = frames - max(cfg.train.init_random_frames, frames - n)  # frames past the random phase
             if learn_frames > 0:
-                update_budget = learn(learner, buffer, log, update_budget + learn_frames * cfg.train.updates_per_frame)
+                update_budget = learn(learner, buffer, log, update_budget + learn_frames * cfg.train.updates_per_frame,
+                                      actor=frames >= cfg.train.actor_start_frames)
                 collector.update_policy_weights_()
             agents.set_noise_scale(learner.explore, agents.noise_scale(cfg.algo, frames))
             log.batch(cfg, frames, learner.updates, clock.seconds(), progress)
@@ -371,7 +372,7 @@ def record_episodes(finished: list[dict], cfg: Config, learner, log: "EpisodeLog
     return saved
 
 
-def learn(learner, buffer, log: "EpisodeLog", budget: float) -> float:
+def learn(learner, buffer, log: "EpisodeLog", budget: float, actor: bool = True) -> float:
     """Spend the whole updates of ``budget`` on replay samples; return the fraction left.
 
     The buffer does not change between these updates, so their samples are drawn in one
@@ -382,7 +383,7 @@ def learn(learner, buffer, log: "EpisodeLog", budget: float) -> float:
         batch = learner.cfg.batch_size
         samples = buffer.sample(n * batch).reshape(n, batch)
         for i in range(n):
-            learner.update(samples[i])
+            learner.update(samples[i], actor)
             if learner.updates % 50 == 0:
                 log.losses(learner.losses(), learner.updates)
     return budget - n

@@ -176,3 +176,19 @@ def test_bad_algo_values():
         AlgoConfig(name="ppo")
     with pytest.raises(ConfigError, match="batch_size"):
         AlgoConfig(batch_size=-128)
+
+
+def test_critic_only_updates_leave_the_actor_alone():
+    """``update(actor=False)`` (train.actor_start_frames): the critics learn, the actor does not."""
+    torch.manual_seed(0)
+    learner = agents.make_learner(AlgoConfig(name="td3", actor_update_every=2), 43, 10, SPEC)
+    actor = [p.detach().clone() for p in learner.actor_params]
+    critic = [p.detach().clone() for p in learner.critic_params]
+    batch = _batch()
+    for _ in range(4):
+        learner.update(batch, actor=False)
+    assert all(torch.equal(a, p) for a, p in zip(actor, learner.actor_params))
+    assert not all(torch.equal(c, p) for c, p in zip(critic, learner.critic_params))
+    assert learner.updates == 4 and math.isnan(learner.losses()[0])
+    learner.update(batch)
+    assert not all(torch.equal(a, p) for a, p in zip(actor, learner.actor_params))

@@ -95,6 +95,27 @@ def test_reward_terms_match_hand_computation(env):
     assert set(info["reward_terms"]) == set(RewardConfig.__dataclass_fields__)  # a term per weight, same key
 
 
+def test_command_change_and_fall_terms():
+    """kda penalises the change of the command since the last step (from zero at reset); kfall is
+    paid once, on the step that ends the episode by a fall, and never otherwise."""
+    e = PamWalkerEnv(reward={"kda": 0.5, "kfall": 100.0})
+    e.reset(seed=0)
+    first, second = np.full(10, 0.2, np.float32), np.full(10, -0.3, np.float32)
+    _, r1, _, _, info1 = e.step(first)
+    _, r2, _, _, info2 = e.step(second)
+    assert info1["reward_terms"]["kda"] == pytest.approx(-0.5 * 10 * 0.2**2, rel=1e-6)
+    assert info2["reward_terms"]["kda"] == pytest.approx(-0.5 * 10 * 0.5**2, rel=1e-6)
+    assert info1["reward_terms"]["kfall"] == 0.0 and sum(info2["reward_terms"].values()) == pytest.approx(r2)
+    rng = np.random.default_rng(0)
+    for _ in range(400):  # full-band random commands throw the robot over within a second
+        _, reward, terminated, truncated, info = e.step(rng.choice([-1.0, 1.0], 10).astype(np.float32))
+        if terminated or truncated:
+            break
+        assert info["reward_terms"]["kfall"] == 0.0
+    assert terminated and info["fell"] and info["reward_terms"]["kfall"] == -100.0
+    e.close()
+
+
 def test_reward_weights_are_keyword_arguments():
     e = gym.make("pamrun/PamWalker-v0", reward={"kv": 1.0, "kt": 0.0})
     e.reset(seed=0)

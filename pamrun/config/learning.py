@@ -66,6 +66,7 @@ class TrainConfig:
     frames_per_batch: int = 200  # env steps collected between learner phases
     init_random_frames: int = 2000  # uniform random actions before learning starts
     updates_per_frame: float = 1.0  # gradient updates per collected env step
+    actor_start_frames: int = 0  # frames before the actor's first update: until then only the critics learn
     buffer_size: int = 1_000_000  # the MathWorks example's ExperienceBufferLength
     checkpoint_every_frames: int = 20_000  # write checkpoints/last.pt (and the buffer) this often
     # Evaluation during training: eval_episodes deterministic episodes of pamrun eval's walk test
@@ -85,4 +86,5 @@ class TrainConfig:
         _require(not (self.stop_on_walk and self.eval_every_frames == 0), "stop_on_walk",
                  "needs evaluations during training (train.eval_every_frames > 0)")
         _require(self.init_random_frames >= 0, "init_random_frames", "must be >= 0")
+        _require(self.actor_start_frames >= 0, "actor_start_frames", "must be >= 0")
         _require(self.threads >= 0, "threads", f"must be >= 0 (0 = automatic), got {self.threads}")

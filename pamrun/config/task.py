@@ -15,6 +15,7 @@ class RewardConfig:
     """Per-step reward weights (thesis Table 9.3).
 
     r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf
+          - kda sum((a_prev - a_prev2)^2) - kfall [fell]   (the last two: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -22,9 +23,12 @@ class RewardConfig:
     kz: float = 60.0  # weight of the squared height change (z - z0)^2 [per m^2]
     kv: float = 0.02  # weight of the action effort sum(a^2)
     kt: float = 25.0  # alive bonus per episode (kt Ts / Tf per step)
+    # Beyond Table 9.3 (0 = the thesis' reward):
+    kda: float = 0.0  # weight of the squared command change sum((a - a_prev)^2), for a smoother gait
+    kfall: float = 0.0  # penalty paid once, on the step an episode ends by a fall
 
     def __post_init__(self) -> None:
-        for name in ("kvx", "ky", "kz", "kv", "kt"):
+        for name in ("kvx", "ky", "kz", "kv", "kt", "kda", "kfall"):
             _require(math.isfinite(getattr(self, name)), name, "must be finite")
 
 
