@@ -134,26 +134,11 @@ class EpisodeLog:
     @staticmethod
     def read(path: Path) -> list[dict]:
         """The rows of an episodes.csv; a damaged file stops with one line naming it."""
-        try:
-            rows = list(csv.DictReader(path.open()))
-            for r in rows:
-                int(r["episode"]), float(r["reward"])
-            return rows
-        except (KeyError, ValueError, TypeError, csv.Error, UnicodeDecodeError) as err:
-            raise SystemExit(f"pamrun: {path}: not a pamrun episode log ({type(err).__name__}: {err}); restore it, "
-                             "or start the run again in a new directory.") from None
+        return read_log(path, "episode", "reward", "episode log")
 
     @staticmethod
     def write_rows(path: Path, rows: list[dict]) -> None:
-        from pamrun.runio import atomic_write
-
-        def write(tmp: Path) -> None:
-            with tmp.open("w", newline="") as fh:
-                w = csv.DictWriter(fh, fieldnames=CSV_FIELDS, extrasaction="ignore")
-                w.writeheader()
-                w.writerows({**{"physics_error": 0}, **r} for r in rows)
-
-        atomic_write(path, write)
+        write_log(path, CSV_FIELDS, [{**{"physics_error": 0}, **r} for r in rows])
 
     @classmethod
     def truncate(cls, out: Path, episodes: int) -> None:
@@ -206,33 +191,41 @@ class EvalLog:
     @staticmethod
     def read(path: Path) -> list[dict]:
         """The rows of an evals.csv; a damaged file stops with one line naming it."""
-        try:
-            rows = list(csv.DictReader(path.open()))
-            for r in rows:
-                int(r["frames"]), float(r["walk_pass_rate"])
-            return rows
-        except (KeyError, ValueError, TypeError, csv.Error, UnicodeDecodeError) as err:
-            raise SystemExit(f"pamrun: {path}: not a pamrun evaluation log ({type(err).__name__}: {err}); restore "
-                             "or delete it.") from None
+        return read_log(path, "frames", "walk_pass_rate", "evaluation log")
 
     @classmethod
     def truncate(cls, out: Path, frames: int) -> None:
         """Forget evaluations made after the last checkpoint: those frames will be run again."""
         from pamrun.evaluate import EVALS_FIELDS
-        from pamrun.runio import atomic_write
 
         path = out / "evals.csv"
-        if not path.exists():
-            return
-        rows = [r for r in cls.read(path) if int(r["frames"]) <= frames]
+        if path.exists():
+            write_log(path, EVALS_FIELDS, [r for r in cls.read(path) if int(r["frames"]) <= frames])
 
-        def write(tmp: Path) -> None:
-            with tmp.open("w", newline="") as fh:
-                w = csv.DictWriter(fh, fieldnames=EVALS_FIELDS, extrasaction="ignore")
-                w.writeheader()
-                w.writerows(rows)
 
-        atomic_write(path, write)
+def read_log(path: Path, int_key: str, float_key: str, what: str) -> list[dict]:
+    """The rows of one of a run's CSV logs; a damaged file stops with one line naming it."""
+    try:
+        rows = list(csv.DictReader(path.open()))
+        for r in rows:
+            int(r[int_key]), float(r[float_key])
+        return rows
+    except (KeyError, ValueError, TypeError, csv.Error, UnicodeDecodeError) as err:
+        raise SystemExit(f"pamrun: {path}: not a pamrun {what} ({type(err).__name__}: {err}); restore it, "
+                         "or start the run again in a new directory.") from None
+
+
+def write_log(path: Path, fields: tuple[str, ...], rows: list[dict]) -> None:
+    """Rewrite a CSV log with these rows, atomically."""
+    from pamrun.runio import atomic_write
+
+    def write(tmp: Path) -> None:
+        with tmp.open("w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
+            w.writeheader()
+            w.writerows(rows)
+
+    atomic_write(path, write)
 
 
 def train(dcfg: DictConfig) -> None:
