@@ -5,7 +5,8 @@
 Measures, in one run, with the thesis' networks (400/300) at batch 128, each measurement
 ``--repeats`` times in turn (so a change of machine load hits all of them alike):
 1. ``pamrun train`` with TD3 (and DDPG) at one gradient update per frame: environment
-   frames/s and updates/s of the whole loop (collection + learning), from run.json;
+   frames/s of the whole loop (collection + learning), from run.json, with the env stepped
+   between updates and with ``train.async_collection=true`` (stepped in its own process);
 2. pamrun's TD3 update alone (``agents.Learner.update``: critics, actor, Adam, targets) on one batch;
 3. TorchRL's TD3 update alone (``TD3Loss`` critic/actor halves + Adam + ``SoftUpdate``), which
    pamrun used before 0.2;
@@ -37,11 +38,12 @@ from pamrun.config import AlgoConfig
 OBS, ACT, BATCH = 43, 10, 128
 
 
-def pamrun_loop(algo: str, frames: int) -> dict:
+def pamrun_loop(algo: str, frames: int, *extra: str) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         cmd = [sys.executable, "-m", "pamrun.cli", "train", f"algo={algo}", "train=smoke",
                f"train.max_frames={frames}", "train.init_random_frames=200", "train.updates_per_frame=1",
-               "train.checkpoint_every_frames=1000000", "train.save_threshold=1e9", f"hydra.run.dir={tmp}/run"]
+               "train.checkpoint_every_frames=1000000", "train.save_threshold=1e9", "train.eval_every_frames=0",
+               *extra, f"hydra.run.dir={tmp}/run"]
         subprocess.run(cmd, check=True, capture_output=True)
         run = json.loads(Path(tmp, "run", "run.json").read_text())
     wall = run["wall_time_s"]
@@ -177,6 +179,8 @@ def main() -> None:
     runs: dict[str, list[float]] = {}
     for _ in range(args.repeats):  # interleaved, so drifting load hits every measurement alike
         measures = {"pamrun_td3_loop_frames_per_s": lambda: pamrun_loop("td3", args.frames)["frames_per_s"],
+                    "pamrun_td3_async_loop_frames_per_s":
+                        lambda: pamrun_loop("td3", args.frames, "train.async_collection=true")["frames_per_s"],
                     "pamrun_td3_update_per_s": lambda: pamrun_td3_updates(args.updates),
                     "torchrl_td3_update_per_s": lambda: torchrl_td3_updates(args.updates),
                     "plain_pytorch_td3_update_per_s": lambda: plain_td3_updates(args.updates)}
@@ -195,6 +199,8 @@ def main() -> None:
               "torchrl_update / plain_pytorch_update": med["torchrl_td3_update_per_s"] / med["plain_pytorch_td3_update_per_s"]}
     if "sb3_td3_loop_frames_per_s" in med:
         ratios["pamrun_loop / sb3_loop"] = med["pamrun_td3_loop_frames_per_s"] / med["sb3_td3_loop_frames_per_s"]
+        ratios["pamrun_async_loop / sb3_loop"] = (med["pamrun_td3_async_loop_frames_per_s"]
+                                                  / med["sb3_td3_loop_frames_per_s"])
     row["ratios_of_medians"] = {k: round(v, 3) for k, v in ratios.items()}
     print(f"{'measure':>34}  {'min':>7} {'median':>7} {'max':>7}")
     for key in runs:

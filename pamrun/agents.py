@@ -218,7 +218,7 @@ class Learner:
 
     def load_state_dict(self, state: dict, updates: int) -> None:
         if "networks" not in state:
-            raise ValueError("written by a pamrun before 0.2 (TorchRL loss state): resume it with that version")
+            raise ValueError("resume state of an earlier pamrun (TorchRL loss state): continue it with the pamrun that wrote it")
         nets = state["networks"]
         self.actor.module.load_state_dict(nets["actor"])
         self.critics.load_state_dict(nets["critics"])

@@ -59,14 +59,23 @@ def make_env(cfg: Config):
 
 
 def make_collector(cfg: Config, policy, total_frames: int, start_random: int):
-    from torchrl.collectors import Collector, MultiSyncCollector
+    """TorchRL's collector for ``train.workers`` envs: in this process (one worker), in worker
+    processes stepping in lockstep, or with ``train.async_collection`` in worker processes
+    that keep stepping while the learner updates (each batch then comes from the policy of
+    one or more batches before)."""
+    from torchrl.collectors import AsyncCollector, Collector, MultiAsyncCollector, MultiSyncCollector
 
     # auto_register_policy_transforms: adds the InitTracker the OU noise needs to restart per episode.
     kwargs = dict(frames_per_batch=cfg.train.frames_per_batch, total_frames=total_frames,
                   init_random_frames=start_random, auto_register_policy_transforms=True)
+    make = functools.partial(make_env, cfg)
+    if cfg.train.async_collection:
+        if cfg.train.workers == 1:
+            return AsyncCollector(make, policy, **kwargs)
+        return MultiAsyncCollector([make] * cfg.train.workers, policy, **kwargs)
     if cfg.train.workers == 1:
-        return Collector(functools.partial(make_env, cfg), policy, **kwargs)
-    return MultiSyncCollector([functools.partial(make_env, cfg)] * cfg.train.workers, policy, **kwargs)
+        return Collector(make, policy, **kwargs)
+    return MultiSyncCollector([make] * cfg.train.workers, policy, **kwargs)
 
 
 def seed_everything(seed: int) -> None:

@@ -186,3 +186,16 @@ def test_resume_forgets_evaluations_after_the_checkpoint(tmp_path):
     (run_dir / "evals.csv").write_text("frames,walk_pass_rate\nten,x\n")
     with pytest.raises(SystemExit, match="evals.csv"):
         EvalLog.truncate(run_dir, 400)
+
+
+def test_async_collection(tmp_path):
+    """train.async_collection: the env steps in its own process; the run's files and counters are
+    those of a synchronous run."""
+    run_dir = tmp_path / "async"
+    proc = run_pamrun("train", "algo=td3", *TINY, "train.async_collection=true", f"hydra.run.dir={run_dir}")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    run = json.loads((run_dir / "run.json").read_text())
+    assert run["status"] == "max_frames" and run["frames"] == 600 and run["updates"] == 100
+    rows = list(csv.DictReader((run_dir / "episodes.csv").open()))
+    assert [int(r["episode"]) for r in rows] == list(range(1, run["episodes"] + 1))
+    assert sum(int(r["length"]) for r in rows) <= 600

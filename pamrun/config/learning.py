@@ -62,6 +62,9 @@ class TrainConfig:
     save_threshold: float = 250.0  # save every agent whose episode reward reaches it (§9.5)
     keep_saved: int = 10  # keep the best this many threshold saves
     workers: int = 1  # collector processes (the thesis used 8)
+    # Envs in their own process(es), stepping while the learner updates; batches lag the policy
+    # by a batch or more and runs are no longer bit-for-bit reproducible.
+    async_collection: bool = False  # collect and learn at once (TorchRL's AsyncCollector)
     threads: int = 0  # torch threads of the learner; 0 = the cores the collectors leave free
     frames_per_batch: int = 200  # env steps collected between learner phases
     init_random_frames: int = 2000  # uniform random actions before learning starts
