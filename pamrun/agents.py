@@ -26,7 +26,7 @@ from torchrl.modules import AdditiveGaussianModule, OrnsteinUhlenbeckProcessModu
 
 from pamrun.config import AlgoConfig
 
-ALGOS = ("ddpg", "td3")
+ALGOS = ("ddpg", "td3", "sac")
 
 
 class ThesisActor(nn.Module):
@@ -46,6 +46,44 @@ class ThesisActor(nn.Module):
         return self.net(observation)
 
 
+class SquashedGaussianActor(ThesisActor):
+    """SAC's policy on the thesis' actor: tanh(N(mu(s), sigma(s))), mu from Table 9.1's network
+    without its tanh, log sigma from a linear head on its last hidden layer.
+
+    ``forward`` is the deterministic policy tanh(mu(s)), the part an agent file stores
+    (:meth:`Learner.policy_state`), so ``pamrun eval`` runs a SAC agent like any other."""
+
+    LOG_STD_RANGE = (-5.0, 2.0)  # clamp of log sigma (as CleanRL's SAC)
+
+    def __init__(self, obs_size: int, action_size: int, hidden: tuple[int, int], init_scale: float):
+        super().__init__(obs_size, action_size, hidden, init_scale)
+        self.log_std_head = nn.Linear(hidden[1], action_size)
+
+    def sample(self, observation: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """A reparametrised action and its log-probability (with tanh's change of variables)."""
+        h = self.net[:4](observation)
+        mean = self.net[4](h)
+        log_std = self.log_std_head(h).clamp(*self.LOG_STD_RANGE)
+        u = mean + log_std.exp() * torch.randn_like(mean)
+        action = torch.tanh(u)
+        # log N(u; mean, std) - log(1 - tanh(u)^2), the latter in a stable form
+        log_prob = (-0.5 * ((u - mean) / log_std.exp()) ** 2 - log_std - 0.5 * math.log(2 * math.pi)
+                    - 2.0 * (math.log(2.0) - u - nn.functional.softplus(-2.0 * u)))
+        return action, log_prob.sum(-1, keepdim=True)
+
+
+class _Sampler(nn.Module):
+    """The collector's SAC policy: an action sampled from the actor's distribution."""
+
+    def __init__(self, actor: SquashedGaussianActor):
+        super().__init__()
+        self.actor = actor
+
+    def forward(self, observation: torch.Tensor) -> torch.Tensor:
+        with torch.no_grad():
+            return self.actor.sample(observation)[0]
+
+
 class ThesisCritic(nn.Module):
     """Table 9.2: Q(observation, action) with separate observation and action paths."""
 
@@ -62,7 +100,8 @@ class ThesisCritic(nn.Module):
 
 
 def make_actor(cfg: AlgoConfig, obs_size: int, action_size: int) -> TensorDictModule:
-    net = ThesisActor(obs_size, action_size, tuple(cfg.hidden_sizes), cfg.output_init_scale)
+    cls = SquashedGaussianActor if cfg.name == "sac" else ThesisActor
+    net = cls(obs_size, action_size, tuple(cfg.hidden_sizes), cfg.output_init_scale)
     return TensorDictModule(net, in_keys=["observation"], out_keys=["action"])
 
 
@@ -71,7 +110,11 @@ def make_critic(cfg: AlgoConfig, obs_size: int, action_size: int) -> ThesisCriti
 
 
 def make_exploration(cfg: AlgoConfig, actor: TensorDictModule, action_spec) -> TensorDictSequential:
-    """The actor followed by TorchRL's exploration noise module for this algorithm."""
+    """The actor followed by TorchRL's exploration noise module for this algorithm (SAC: its own
+    sampled actions)."""
+    if cfg.name == "sac":
+        return TensorDictSequential(TensorDictModule(_Sampler(actor.module), in_keys=["observation"],
+                                                     out_keys=["action"]))
     if cfg.name == "ddpg":
         noise = OrnsteinUhlenbeckProcessModule(
             spec=action_spec,
@@ -99,11 +142,12 @@ def noise_scale(cfg: AlgoConfig, frames: int) -> float:
 
 
 def set_noise_scale(explore: TensorDictSequential, scale: float) -> None:
-    """Write the noise multiplier into TorchRL's exploration module (its ``eps``/``sigma`` buffer)."""
+    """Write the noise multiplier into TorchRL's exploration module (its ``eps``/``sigma`` buffer);
+    SAC's exploration is its own entropy-tuned spread, left alone."""
     noise = explore.module[-1]
     if isinstance(noise, OrnsteinUhlenbeckProcessModule):
         noise.eps.fill_(scale)
-    else:
+    elif isinstance(noise, AdditiveGaussianModule):
         noise.sigma.fill_(scale)
 
 
@@ -123,13 +167,20 @@ class Learner:
     * critic loss: sum over the critics of mean(loss_function(Q_k(s, a), y));
     * actor loss: -mean(Q_1(s, pi(s)));
     * targets: theta' <- theta' + tau (theta - theta') (TorchRL's ``SoftUpdate``).
+
+    ``sac`` (Haarnoja et al. 2018, as CleanRL's ``sac_continuous_action.py``): twin critics,
+    a' ~ pi(s') and y = r + gamma (1 - terminated) (min_k Q'_k(s', a') - alpha log pi(a'|s'));
+    actor loss mean(alpha log pi(a|s) - min_k Q_k(s, a)) with a ~ pi(s) reparametrised;
+    alpha learned towards an entropy of ``target_entropy`` per action. Its tanh change of
+    variables makes saturated actions improbable, where a deterministic actor drifts into
+    full-band commands.
     """
 
     def __init__(self, cfg: AlgoConfig, obs_size: int, action_size: int, action_spec):
         self.cfg = cfg
         self.actor = make_actor(cfg, obs_size, action_size)  # a TensorDictModule, for the collector
         self.critics = nn.ModuleList(make_critic(cfg, obs_size, action_size) for _ in range(n_critics(cfg)))
-        self.actor_target = copy.deepcopy(self.actor.module).requires_grad_(False)
+        self.actor_target = copy.deepcopy(self.actor.module).requires_grad_(False)  # unused by SAC
         self.critic_targets = copy.deepcopy(self.critics).requires_grad_(False)
         self.explore = make_exploration(cfg, self.actor, action_spec)
         self.low, self.high = action_spec.space.low, action_spec.space.high
@@ -140,6 +191,9 @@ class Learner:
         self.actor_opt = torch.optim.Adam(self.actor_params, lr=cfg.actor_lr, fused=True)
         self._pairs = [(list(self.actor_target.parameters()), self.actor_params),
                        (list(self.critic_targets.parameters()), self.critic_params)]
+        self.log_alpha = torch.tensor(math.log(cfg.init_alpha), requires_grad=True)  # SAC's temperature
+        self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=cfg.actor_lr)
+        self.target_entropy = cfg.target_entropy * action_size
         self._distance = {"l2": nn.functional.mse_loss, "l1": nn.functional.l1_loss,
                           "smooth_l1": nn.functional.smooth_l1_loss}[cfg.loss_function]
         self.updates = 0
@@ -151,18 +205,35 @@ class Learner:
     def critic_loss(self, obs, action, reward, next_obs, terminated) -> torch.Tensor:
         cfg = self.cfg
         with torch.no_grad():
-            next_action = self.actor_target(next_obs)
+            if cfg.name == "sac":
+                next_action, next_log_prob = self.actor.module.sample(next_obs)
+            else:
+                next_action = self.actor_target(next_obs)
             if cfg.name == "td3":
                 noise = (torch.randn_like(action) * cfg.policy_noise).clamp(-cfg.noise_clip, cfg.noise_clip)
                 next_action = torch.max(torch.min(next_action + noise, self.high), self.low)
             next_q = self.critic_targets[0](next_obs, next_action)
             for target in self.critic_targets[1:]:
                 next_q = torch.min(next_q, target(next_obs, next_action))
+            if cfg.name == "sac":
+                next_q = next_q - self.log_alpha.exp() * next_log_prob
             y = reward + cfg.gamma * (~terminated) * next_q
         return sum(self._distance(critic(obs, action), y) for critic in self.critics)
 
     def actor_loss(self, obs) -> torch.Tensor:
+        if self.cfg.name == "sac":
+            action, log_prob = self.actor.module.sample(obs)
+            q = torch.min(self.critics[0](obs, action), self.critics[1](obs, action))
+            self._log_prob = log_prob.detach()
+            return (self.log_alpha.exp().detach() * log_prob - q).mean()
         return -self.critics[0](obs, self.actor.module(obs)).mean()
+
+    def alpha_step(self) -> None:
+        """SAC: move alpha so that the policy's entropy approaches the target."""
+        loss = -(self.log_alpha * (self._log_prob + self.target_entropy)).mean()
+        self.alpha_opt.zero_grad()
+        loss.backward()
+        self.alpha_opt.step()
 
     def update(self, sample, actor: bool = True) -> None:
         """One update on a replay sample (a TensorDict with TorchRL's transition keys); with
@@ -186,6 +257,8 @@ class Learner:
                 p.requires_grad_(True)
             nn.utils.clip_grad_norm_(self.actor_params, self.cfg.grad_clip)
             self.actor_opt.step()
+            if self.cfg.name == "sac":
+                self.alpha_step()
             self.soft_update()
             self._actor_loss = actor_loss.detach()
         self.updates += 1
@@ -205,6 +278,10 @@ class Learner:
         with torch.no_grad():
             return self.critics[0](observations, self.actor.module(observations)).reshape(-1).tolist()
 
+    def policy_state(self) -> dict:
+        """The deterministic policy's weights (thesis Table 9.1's actor): what an agent file holds."""
+        return {k: v for k, v in self.actor.module.state_dict().items() if k.startswith("net.")}
+
     def parameters(self) -> list[torch.Tensor]:
         """Every learned or target tensor (what a checkpoint writes, with two Adam moments each)."""
         return [*self.actor_params, *self.critic_params, *self.actor_target.parameters(),
@@ -214,7 +291,8 @@ class Learner:
         return {"networks": {"actor": self.actor.module.state_dict(), "critics": self.critics.state_dict(),
                              "actor_target": self.actor_target.state_dict(),
                              "critic_targets": self.critic_targets.state_dict()},
-                "actor_opt": self.actor_opt.state_dict(), "critic_opt": self.critic_opt.state_dict()}
+                "actor_opt": self.actor_opt.state_dict(), "critic_opt": self.critic_opt.state_dict(),
+                "log_alpha": self.log_alpha.detach().clone(), "alpha_opt": self.alpha_opt.state_dict()}
 
     def load_state_dict(self, state: dict, updates: int) -> None:
         if "networks" not in state:
@@ -226,12 +304,16 @@ class Learner:
         self.critic_targets.load_state_dict(nets["critic_targets"])
         self.actor_opt.load_state_dict(state["actor_opt"])
         self.critic_opt.load_state_dict(state["critic_opt"])
+        if "log_alpha" in state:
+            with torch.no_grad():
+                self.log_alpha.copy_(state["log_alpha"])
+            self.alpha_opt.load_state_dict(state["alpha_opt"])
         self.updates = updates
 
 
 def n_critics(cfg: AlgoConfig) -> int:
-    """Critics the algorithm learns: one (DDPG) or the twin critics of TD3."""
-    return 2 if cfg.name == "td3" else 1
+    """Critics the algorithm learns: one (DDPG) or the twin critics of TD3 and SAC."""
+    return 1 if cfg.name == "ddpg" else 2
 
 
 def make_learner(cfg: AlgoConfig, obs_size: int, action_size: int, action_spec) -> Learner:

@@ -261,7 +261,7 @@ def save_last(ckpt_dir: Path, cfg, learner, buffer, counters: dict) -> None:
     buffer.dumps(tmp)
     shutil.rmtree(ckpt_dir / name, ignore_errors=True)
     tmp.rename(ckpt_dir / name)
-    actor = agent_record(learner.actor.module.state_dict(), cfg,
+    actor = agent_record(learner.policy_state(), cfg,
                          {"frames": counters["frames"], "episode": counters["episodes"]})
     atomic_save({**actor, **learner.state_dict(), "counters": dict(counters), "rng": rng_states(),
                  "buffer": {"dir": name, "length": len(buffer), "files": file_fingerprints(ckpt_dir / name)}},

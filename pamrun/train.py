@@ -176,14 +176,15 @@ class EvalLog:
         if new:
             self.csv.writeheader()
 
-    def run(self, actor, cfg: Config, counters: dict) -> dict:
-        """Evaluate ``actor`` now; log it, keep it if it is the best so far; return the result."""
+    def run(self, actor, policy_state: dict, cfg: Config, counters: dict) -> dict:
+        """Evaluate ``actor`` (its weights: ``policy_state``) now; log it, keep it if it is the
+        best so far; return the result."""
         result = self.evaluator(actor)
         best = not result["physics_error_rate"] and self.evaluator.better(result, self.best)
         if best:
             self.best = {k: v for k, v in result.items() if isinstance(v, (int, float, bool))}
             meta = {"frames": counters["frames"], "episode": counters["episodes"], "eval": self.best}
-            checkpoints.save_agent_record(self.best_path, actor.state_dict(), cfg, meta)
+            checkpoints.save_agent_record(self.best_path, policy_state, cfg, meta)
         row = {**result, "frames": counters["frames"], "episodes": counters["episodes"],
                "wall_time_s": round(counters["wall_time_s"], 3), "best": int(best)}
         self.csv.writerow({k: (round(v, 5) if isinstance(v, float) else v) for k, v in row.items()})
@@ -288,7 +289,8 @@ def train(dcfg: DictConfig) -> None:
                 log.sync()
                 checkpoints.save_last(ckpt_dir, cfg, learner, buffer, run_counters(frames, log, learner, clock))
             if evals and frames % cfg.train.eval_every_frames < n:
-                result = evals.run(learner.actor.module, cfg, run_counters(frames, log, learner, clock))
+                result = evals.run(learner.actor.module, learner.policy_state(), cfg,
+                                   run_counters(frames, log, learner, clock))
                 if result["walk_test"] and cfg.train.stop_on_walk:
                     status = "walked"
                     break
@@ -369,7 +371,7 @@ def record_episodes(finished: list[dict], cfg: Config, learner, log: "EpisodeLog
     for episode, q0 in zip(finished, q0s):
         row = log.add(episode, q0, frames, wall_time_s)
         if episode["reward"] >= cfg.train.save_threshold and not episode["physics_error"]:
-            saved = checkpoints.save_agent(ckpt_dir, learner.actor.module.state_dict(), row, cfg, saved,
+            saved = checkpoints.save_agent(ckpt_dir, learner.policy_state(), row, cfg, saved,
                                            cfg.train.keep_saved)
     return saved
 
@@ -553,7 +555,8 @@ def header_table(cfg: Config, out: Path):
     a, t = cfg.algo, cfg.train
     for key, value in (
         ("algorithm", f"{a.name}: actor lr {a.actor_lr:g}, critic lr {a.critic_lr:g}, batch {a.batch_size}, "
-                      f"gamma {a.gamma}, tau {a.target_smoothing:g}, noise var {a.noise_variance:g}"),
+                      f"gamma {a.gamma}, tau {a.target_smoothing:g}, "
+                      + (f"initial alpha {a.init_alpha:g}" if a.name == "sac" else f"noise var {a.noise_variance:g}")),
         ("robot", f"H {cfg.body.height_m} m, M {cfg.body.mass_kg} kg, coupling {cfg.muscle.coupling}"),
         ("reward", f"kvx {cfg.reward.kvx}, ky {cfg.reward.ky}, kz {cfg.reward.kz}, kv {cfg.reward.kv}, "
                    f"kt {cfg.reward.kt}"),

@@ -192,3 +192,43 @@ def test_critic_only_updates_leave_the_actor_alone():
     assert learner.updates == 4 and math.isnan(learner.losses()[0])
     learner.update(batch)
     assert not all(torch.equal(a, p) for a, p in zip(actor, learner.actor_params))
+
+
+def test_sac_log_probability_is_the_squashed_gaussian():
+    """SAC's log pi(a|s) equals torch.distributions' tanh-transformed Normal at the same sample."""
+    from torch.distributions import Normal, TanhTransform, TransformedDistribution
+
+    torch.manual_seed(0)
+    actor = agents.SquashedGaussianActor(43, 10, (400, 300), 3e-3)
+    obs = torch.randn(64, 43)
+    action, log_prob = actor.sample(obs)
+    h = actor.net[:4](obs)
+    std = actor.log_std_head(h).clamp(*actor.LOG_STD_RANGE).exp()
+    reference = TransformedDistribution(Normal(actor.net[4](h), std), [TanhTransform(cache_size=1)])
+    torch.testing.assert_close(log_prob.squeeze(-1), reference.log_prob(action).sum(-1), rtol=1e-4, atol=1e-4)
+    assert torch.equal(actor(obs), torch.tanh(actor.net[4](h)))  # forward: the deterministic policy
+
+
+def test_sac_learns_its_critics_and_temperature():
+    """SAC updates fit the critics, and alpha falls while the policy's entropy is above its target."""
+    torch.manual_seed(0)
+    learner = agents.make_learner(AlgoConfig(name="sac", critic_lr=1e-3, actor_lr=3e-3), 43, 10, SPEC)
+    assert len(learner.critics) == 2 and learner.log_alpha.item() == 0.0
+    batch = _batch()
+    nxt = batch["next"]
+
+    def critic_loss():
+        with torch.no_grad():
+            return float(learner.critic_loss(batch["observation"], batch["action"], nxt["reward"],
+                                             nxt["observation"], nxt["terminated"]))
+
+    first = critic_loss()
+    for _ in range(30):
+        learner.update(batch)
+    assert critic_loss() < 0.5 * first
+    assert learner.log_alpha.item() < 0  # entropy of a fresh policy (std ~1) is far above -10
+    assert set(learner.policy_state()) == set(agents.ThesisActor(43, 10, (400, 300), 3e-3).state_dict())
+    state = learner.state_dict()
+    other = agents.make_learner(AlgoConfig(name="sac"), 43, 10, SPEC)
+    other.load_state_dict(state, learner.updates)
+    assert other.log_alpha.item() == learner.log_alpha.item()

@@ -13,7 +13,7 @@ from pamrun.config.checks import _non_negative, _positive, _require
 class AlgoConfig:
     """DDPG (the thesis, Table 9.4) or TD3 (its proposed next step, §13)."""
 
-    name: str = "ddpg"  # ddpg (the thesis) or td3
+    name: str = "ddpg"  # ddpg (the thesis), td3 or sac
     gamma: float = 0.99  # discount (Table 9.4)
     batch_size: int = 128  # Table 9.4
     target_smoothing: float = 1e-3  # soft target update tau (Table 9.4)
@@ -34,14 +34,17 @@ class AlgoConfig:
     policy_noise: float = 0.2  # TD3 target policy smoothing noise
     noise_clip: float = 0.5  # TD3 clip of the target policy noise
     actor_update_every: int = 1  # actor update every n critic updates (DDPG 1; TD3's delay: 2, algo=td3)
+    # SAC only (Haarnoja et al. 2018; CleanRL's defaults)
+    init_alpha: float = 1.0  # SAC's initial entropy temperature alpha (learned; lr = actor_lr)
+    target_entropy: float = -1.0  # SAC's target entropy per action dimension
     grad_clip: float = 1.0  # gradient threshold of the MathWorks example
 
     def __post_init__(self) -> None:
-        _require(self.name in ("ddpg", "td3"), "name", f"unknown algorithm {self.name!r}; known: ddpg, td3")
+        _require(self.name in ("ddpg", "td3", "sac"), "name", f"unknown algorithm {self.name!r}; known: ddpg, td3, sac")
         _require(0 < self.gamma <= 1, "gamma", f"must lie in (0, 1], got {self.gamma}")
         _require(self.batch_size >= 1, "batch_size", f"must be >= 1, got {self.batch_size}")
         _require(0 < self.target_smoothing <= 1, "target_smoothing", "must lie in (0, 1]")
-        _positive(self, "actor_lr", "critic_lr", "output_init_scale", "ou_dt_s", "grad_clip")
+        _positive(self, "actor_lr", "critic_lr", "output_init_scale", "ou_dt_s", "grad_clip", "init_alpha")
         _non_negative(self, "noise_variance", "noise_decay", "noise_variance_min", "ou_theta", "policy_noise",
                       "noise_clip")
         _require(len(self.hidden_sizes) == 2 and min(self.hidden_sizes) > 0, "hidden_sizes",
