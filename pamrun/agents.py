@@ -99,14 +99,32 @@ class ThesisCritic(nn.Module):
         return self.head(self.obs_path(observation) + self.action_path(action))
 
 
+class ConcatCritic(nn.Module):
+    """Q(observation, action) with both concatenated at the input, then two hidden layers
+    (Fujimoto et al.'s TD3, CleanRL): Q is nonlinear in the action through both layers, where
+    Table 9.2's critic adds the action after the first and is piecewise linear in it through
+    one ReLU layer, whose maximum over the action box tends to lie at a corner."""
+
+    def __init__(self, obs_size: int, action_size: int, hidden: tuple[int, int], init_scale: float):
+        super().__init__()
+        self.net = nn.Sequential(nn.Linear(obs_size + action_size, hidden[0]), nn.ReLU(),
+                                 nn.Linear(hidden[0], hidden[1]), nn.ReLU(), nn.Linear(hidden[1], 1))
+        nn.init.uniform_(self.net[4].weight, -init_scale, init_scale)
+        nn.init.uniform_(self.net[4].bias, -init_scale, init_scale)
+
+    def forward(self, observation: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
+        return self.net(torch.cat([observation, action], dim=-1))
+
+
 def make_actor(cfg: AlgoConfig, obs_size: int, action_size: int) -> TensorDictModule:
     cls = SquashedGaussianActor if cfg.name == "sac" else ThesisActor
     net = cls(obs_size, action_size, tuple(cfg.hidden_sizes), cfg.output_init_scale)
     return TensorDictModule(net, in_keys=["observation"], out_keys=["action"])
 
 
-def make_critic(cfg: AlgoConfig, obs_size: int, action_size: int) -> ThesisCritic:
-    return ThesisCritic(obs_size, action_size, tuple(cfg.hidden_sizes), cfg.output_init_scale)
+def make_critic(cfg: AlgoConfig, obs_size: int, action_size: int) -> nn.Module:
+    cls = ConcatCritic if cfg.critic == "concat" else ThesisCritic
+    return cls(obs_size, action_size, tuple(cfg.hidden_sizes), cfg.output_init_scale)
 
 
 def make_exploration(cfg: AlgoConfig, actor: TensorDictModule, action_spec) -> TensorDictSequential:

@@ -22,6 +22,7 @@ class AlgoConfig:
     actor_lr: float = 1e-3  # actor learning rate (Table 9.4)
     critic_lr: float = 1e-4  # critic learning rate (Table 9.4)
     hidden_sizes: list[int] = field(default_factory=lambda: [400, 300])  # Tables 9.1, 9.2
+    critic: str = "thesis"  # thesis: Table 9.2 (the action joins after the first layer); concat: at the input
     output_init_scale: float = 3e-3  # uniform init range of the last layers (DDPG paper)
     loss_function: str = "l2"  # critic loss: l1, l2 or smooth_l1
     # Exploration: variance 0.5 decaying by 1e-5 per step (Table 9.4).
@@ -49,6 +50,7 @@ class AlgoConfig:
                       "noise_clip")
         _require(len(self.hidden_sizes) == 2 and min(self.hidden_sizes) > 0, "hidden_sizes",
                  f"needs two positive layer sizes, got {list(self.hidden_sizes)}")
+        _require(self.critic in ("thesis", "concat"), "critic", f"must be thesis or concat, got {self.critic!r}")
         _require(self.actor_update_every >= 1, "actor_update_every", "must be >= 1")
         _require(self.loss_function in ("l1", "l2", "smooth_l1"), "loss_function", "must be l1, l2 or smooth_l1")
 
