@@ -232,3 +232,13 @@ def test_sac_learns_its_critics_and_temperature():
     other = agents.make_learner(AlgoConfig(name="sac"), 43, 10, SPEC)
     other.load_state_dict(state, learner.updates)
     assert other.log_alpha.item() == learner.log_alpha.item()
+
+
+def test_concat_critic_takes_observation_and_action_at_its_input():
+    critic = agents.make_critic(AlgoConfig(critic="concat"), 43, 10)
+    assert isinstance(critic, agents.ConcatCritic) and critic.net[0].in_features == 53
+    obs, act = torch.randn(4, 43), torch.randn(4, 10)
+    assert critic(obs, act).shape == (4, 1)
+    assert not torch.equal(critic(obs, act), critic(obs, -act))  # the action matters
+    with pytest.raises(ConfigError, match="critic"):
+        AlgoConfig(critic="wide")
