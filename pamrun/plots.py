@@ -121,6 +121,42 @@ def training_curves(csv_path: Path, png_path: Path) -> Path:
     return Path(png_path)
 
 
+def eval_curves(csv_path: Path, png_path: Path, walk_distance_m: float = 7.0, episode_s: float = 10.0) -> Path:
+    """The evaluations during training (``evals.csv``) against frames: mean and minimum
+    distance, mean duration, and the stand and walk-test pass rates."""
+    import csv
+
+    rows = list(csv.DictReader(Path(csv_path).open()))
+    frames = np.array([int(r["frames"]) for r in rows])
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    col = lambda key: np.array([float(r[key]) for r in rows])  # noqa: E731
+    if rows:
+        top.plot(frames, col("distance_mean"), "o-", color="tab:blue", label="distance, mean (m)")
+        top.plot(frames, col("distance_min"), ".--", color="tab:blue", alpha=0.5, label="distance, min (m)")
+        top.axhline(walk_distance_m, color="tab:green", lw=0.8, ls=":", label=f"walk test: {walk_distance_m:g} m")
+        twin = top.twinx()
+        twin.plot(frames, col("duration_mean"), "s-", color="tab:orange", label="duration, mean (s)")
+        twin.set_ylim(0, episode_s * 1.05)
+        twin.set_ylabel("duration (s)")
+        twin.legend(loc="lower right")
+        bottom.plot(frames, col("stand_rate"), "o-", color="tab:orange", label="stand rate")
+        bottom.plot(frames, col("walk_pass_rate"), "o-", color="tab:green", label="walk-test pass rate")
+        bottom.plot(frames, col("fall_rate"), ".-", color="tab:red", alpha=0.6, label="fall rate")
+    top.set_ylabel("distance (m)")
+    top.set_title(f"Evaluations during training ({len(rows)}; deterministic policy, fixed seeds)")
+    top.legend(loc="upper left")
+    bottom.set_ylim(-0.05, 1.05)
+    bottom.set_xlabel("frames")
+    bottom.set_ylabel("share of episodes")
+    bottom.legend(loc="upper left")
+    for ax in (top, bottom):
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=110)
+    plt.close(fig)
+    return Path(png_path)
+
+
 def read_episodes(jsonl_path: Path, agents: set[str] | None = None) -> list[dict]:
     """Episode records of an evaluation (``episodes.jsonl``), optionally of some agents only."""
     prefixes = None if agents is None else tuple('{"agent": ' + json.dumps(a) + "," for a in agents)

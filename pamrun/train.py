@@ -33,7 +33,7 @@ from pamrun.runio import Progress, git_commit, package_versions, read_json, run_
 from pamrun.runtime import usable_cores
 
 # What a training writes in its directory besides .hydra/ and pamrun_config.yaml.
-LEFTOVERS = ("episodes.csv", "evals.csv", "run.json", "tensorboard", "training.png")
+LEFTOVERS = ("episodes.csv", "evals.csv", "run.json", "tensorboard", "training.png", "evals.png")
 NEW_RUN = {"frames": 0, "episodes": 0, "updates": 0, "wall_time_s": 0.0}  # a run's counters at its start
 CSV_FIELDS = ("episode", "frames", "reward", "avg_reward", "q0", "length", "distance_m", "wall_time_s",
               "physics_error")
@@ -310,6 +310,8 @@ def train(dcfg: DictConfig) -> None:
         close_run(out, cfg, learner, buffer, run_counters(frames, log, learner, clock), log, run_info,
                   status or "max_frames", saved)
     plots.training_curves(out / "episodes.csv", out / "training.png")
+    if (out / "evals.csv").exists():
+        plots.eval_curves(out / "evals.csv", out / "evals.png", cfg.eval.walk_distance_m, cfg.eval.episode_s)
     console.print(summary_table(run_info, log, saved, out))
     end_of_run(console, out, status, failure, log)
 
@@ -587,7 +589,7 @@ def summary_table(run_info: dict, log: EpisodeLog, saved: list, out: Path):
         ("physics errors", f"{sum(log.flagged)} episode(s) flagged (never saved)" if sum(log.flagged) else "none"),
         ("best evaluation", best_eval_text(out)),
         ("episodes", str(out / "episodes.csv")),
-        ("curves", str(out / "training.png")),
+        ("curves", str(out / "training.png") + (", evals.png" if (out / "evals.csv").exists() else "")),
         ("checkpoints", str(out / "checkpoints")),
         ("TensorBoard", f"tensorboard --logdir {out / 'tensorboard'}"),
     ]

@@ -134,6 +134,7 @@ def test_evaluations_during_training(tmp_path):
     assert best.meta["frames"] == int(last_best["frames"])
     assert best.meta["eval"]["distance_mean"] == pytest.approx(float(last_best["distance_mean"]), abs=1e-4)
     assert run_dir / "checkpoints" / "best_eval.pt" in find_checkpoints(str(run_dir))  # pamrun eval sees it
+    assert (run_dir / "evals.png").stat().st_size > 10_000
     events = EventAccumulator(str(run_dir / "tensorboard")).Reload()
     assert {"eval/walk_pass_rate", "eval/stand_rate", "eval/distance_mean", "eval/eval_s"} <= set(events.Tags()["scalars"])
     assert [e.step for e in events.Scalars("eval/distance_mean")] == [400, 800, 1200]
