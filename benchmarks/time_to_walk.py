@@ -45,18 +45,21 @@ def milestones(run: Path) -> dict:
            "wall_time_s": info.get("wall_time_s"), "command": info.get("command"), "git_commit": info.get("git_commit")}
     learning = actor_learns_from(run)
     out["actor_learns_from_frames"] = learning
-    for name, column, after in (("stand", "stand_rate", -1), ("stand_learned", "stand_rate", learning),
-                                ("walk", "walk_pass_rate", -1)):
-        first = next((r for r in rows if float(r[column]) >= 1.0 and int(r["frames"]) > after), None)
+    for name, column, since in (("stand", "stand_rate", 0), ("stand_learned", "stand_rate", learning),
+                                ("walk", "walk_pass_rate", 0)):
+        first = next((r for r in rows if float(r[column]) >= 1.0 and int(r["frames"]) >= since), None)
         out[f"{name}_s"] = float(first["wall_time_s"]) if first else None
         out[f"{name}_frames"] = int(first["frames"]) if first else None
     for key in ("stand_rate", "walk_pass_rate", "distance_mean", "duration_mean"):
         out[f"best_{key}"] = max((float(r[key]) for r in rows), default=None)
+    learned = [r for r in rows if int(r["frames"]) >= learning]  # the untrained actor stands
+    out["best_duration_mean_learned"] = max((float(r["duration_mean"]) for r in learned), default=None)
     return out
 
 
 def actor_learns_from(run: Path) -> int:
-    """Frames before the run's first actor update (its random phase and critic warm-up)."""
+    """Frames at the run's first actor update (after its random phase and critic warm-up); an
+    evaluation at these frames comes after it."""
     import yaml
 
     path = run / "pamrun_config.yaml"
@@ -87,6 +90,7 @@ def main() -> None:
     parser.add_argument("--runs", type=Path, nargs="+", help="summarise these finished runs instead of training")
     parser.add_argument("--device", default=f"{os.cpu_count()}-core CPU ({platform.machine()})",
                         help="what the runs ran on, for the record")
+    parser.add_argument("--note", default="", help="a label stored with each row (e.g. 'recipe search')")
     parser.add_argument("extra", nargs="*", help="more overrides for pamrun train (after --)")
     args = parser.parse_args()
     if args.runs:
@@ -95,13 +99,16 @@ def main() -> None:
         args.root.mkdir(parents=True, exist_ok=True)
         runs = [train(args.preset, s, args.minutes, args.extra, args.root) for s in args.seeds]
     results = [milestones(r) for r in runs]
-    stamp = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "device": args.device, "cpu_count": os.cpu_count()}
-    print(f"{'run':<16} {'stand':>28} {'stand, learned':>28} {'walk':>28} {'best distance':>14}")
+    stamp = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "device": args.device, "cpu_count": os.cpu_count(),
+             "note": args.note}
+    print(f"{'run':<16} {'stand':>28} {'stand, learned':>28} {'walk':>28} {'best distance':>14} "
+          f"{'longest':>8} {'frames':>8}")
     for r in results:
         dist = "n/a" if r["best_distance_mean"] is None else f"{r['best_distance_mean']:.2f} m"
+        longest = "n/a" if r["best_duration_mean"] is None else f"{r['best_duration_mean']:.2f} s"
         print(f"{Path(r['run']).name:<16} {fmt(r['stand_s'], r['stand_frames']):>28} "
               f"{fmt(r['stand_learned_s'], r['stand_learned_frames']):>28} {fmt(r['walk_s'], r['walk_frames']):>28} "
-              f"{dist:>14}")
+              f"{dist:>14} {longest:>8} {r['frames'] or 0:>8}")
     for name in ("stand", "stand_learned", "walk"):
         reached = [r[f"{name}_s"] for r in results if r[f"{name}_s"] is not None]
         median = f"{statistics.median(reached) / 60:.1f} min" if len(reached) == len(results) else "not every seed"
