@@ -145,3 +145,13 @@ def test_every_config_field_has_a_doc():
     docs = dict((key, doc) for key, _, doc in rows)
     assert docs["train.max_minutes"] == "wall-clock limit; 0 = none"  # the trailing comment in learning.py
     assert docs["body.knee_limits_deg"].startswith("Left-leg limits")  # the comment heading a run of fields
+
+
+def test_walk_preset_composes_across_groups():
+    """train=walk (a _global_ preset) sets the algorithm, reward and env as well as the budget."""
+    cfg = to_object(compose_config("train=walk"))
+    assert (cfg.algo.name, cfg.algo.critic, cfg.algo.actor_lr) == ("td3", "concat", 1e-4)
+    assert cfg.algo.actor_update_every == 2  # the rest of algo=td3 comes with it
+    assert cfg.reward.kt == 400.0 and cfg.env.reset_noise_rad == 0.02
+    assert cfg.train.stop_on_walk and cfg.train.eval_every_frames == 10_000 and cfg.train.actor_start_frames == 20_000
+    assert to_object(compose_config("train=walk", "algo=sac")).algo.name == "sac"  # the command line still wins
