@@ -34,7 +34,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "body": ("pamrun.lab", "body", "generate the robot: robot.xml, body.json, robot.png (thesis §8.1-8.2)"),
     "openloop": ("pamrun.lab", "openloop", "pressure steps on each joint, torso fixed (thesis §10.2)"),
     "capacity": ("pamrun.lab", "capacity", "muscle torque and stiffness vs standing and walking demand, per joint"),
-    "train": ("pamrun.train", "train", "train DDPG or TD3 on PamWalker-v0 with TorchRL (thesis §9)"),
+    "train": ("pamrun.train", "train", "train DDPG, TD3 or SAC on PamWalker-v0 with TorchRL (thesis §9)"),
     "eval": ("pamrun.evaluate", "evaluate", "test saved agents in parallel, rank them, pick the best: ckpt=<path>"),
     "sweep": ("pamrun.sweep", "job", "trainings over a grid (-m a=1,2 b=x,y), each evaluated, summary at the end"),
     "sweep summarize": ("pamrun.sweep", "summarize_command", "summary table and curves of a sweep: dir=<sweep dir>"),
@@ -51,7 +51,7 @@ TASK = ("seed", *ROBOT, "reward", "env")
 HELP_SECTIONS: dict[str, tuple[str, ...]] = {
     "muscle step": ("muscle", "pair"), "muscle calibrate": ("muscle", "pair"), "muscle curves": ("muscle",),
     "body": ("body",), "openloop": (*ROBOT, "env"), "capacity": ROBOT,
-    "train": (*TASK, "algo", "train", "resume"), "eval": ("ckpt", "eval", *TASK),
+    "train": (*TASK, "algo", "train", "eval", "resume"), "eval": ("ckpt", "eval", *TASK),
     "sweep": ("sweep", *TASK, "algo", "train", "eval"), "sweep optuna": ("sweep", *TASK, "algo", "train", "eval"),
     "sweep summarize": ("dir", "sweep"), "plot training": ("dir",),
 }
