@@ -13,7 +13,7 @@ thesis found its gait pulsing). An episode passes the **walk test** when it last
 The evaluation directory holds ``episodes.jsonl`` (metrics and per-step x, y, z, joint
 angles, pressures and actions of every episode), ``leaderboard.csv``/``.json`` (ranked by
 ``eval.rank_by``), ``best.pt`` with ``selection.json`` saying why, and the figures drawn
-from those files by :mod:`pamrun.plots`; ``eval.render=true`` adds ``best_episode.mp4``.
+from those files by :mod:`pamrun.plots`; ``eval.render=true`` adds ``best_episode.mp4`` and ``best_episode_frames.png``.
 """
 
 from __future__ import annotations
@@ -512,7 +512,8 @@ def draw_figures(out: Path, ecfg, agents: list[Agent], kwargs: list[dict], resul
         same = abs(video["distance_m"] - results[agents.index(best)][0]["distance_m"]) < 1e-9
         console.print(f"Video: {video['frames']} frames, {video['duration_s']:.2f} s"
                       + ("" if same else " [red](the replay differs from the evaluated episode)[/red]"))
-        written.append("best_episode.mp4")
+        plots.video_frames(out / "best_episode.mp4", out / "best_episode_frames.png")
+        written += ["best_episode.mp4", "best_episode_frames.png"]
     return written
 
 

@@ -157,6 +157,24 @@ def eval_curves(csv_path: Path, png_path: Path, walk_distance_m: float = 7.0, ep
     return Path(png_path)
 
 
+def video_frames(mp4_path: Path, png_path: Path, n: int = 5, dt_s: float = 0.025) -> Path:
+    """``n`` evenly spaced frames of a video side by side, each labelled with its time."""
+    import av
+
+    with av.open(str(mp4_path)) as container:
+        frames = [f.to_ndarray(format="rgb24") for f in container.decode(video=0)]
+    picks = np.linspace(0, len(frames) - 1, min(n, len(frames))).round().astype(int)
+    fig, axes = plt.subplots(1, len(picks), figsize=(3.2 * len(picks), 2.6))
+    for ax, k in zip(np.atleast_1d(axes), picks):
+        ax.imshow(frames[k])
+        ax.set_title(f"t = {k * dt_s:.2f} s", fontsize=9)
+        ax.axis("off")
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=100)
+    plt.close(fig)
+    return Path(png_path)
+
+
 def read_episodes(jsonl_path: Path, agents: set[str] | None = None) -> list[dict]:
     """Episode records of an evaluation (``episodes.jsonl``), optionally of some agents only."""
     prefixes = None if agents is None else tuple('{"agent": ' + json.dumps(a) + "," for a in agents)

@@ -141,14 +141,15 @@ def test_eval_of_a_run_directory_end_to_end(trained_run, tmp_path):
                       "eval.video_width=320", "eval.video_height=240", f"hydra.run.dir={out}")
     assert proc.returncode == 0, proc.stderr[-3000:]
     for name in ("episodes.jsonl", "leaderboard.csv", "leaderboard.json", "best.pt", "selection.json",
-                 "trajectories.png", "pressures.png", "training.png", "best_episode.mp4"):
+                 "trajectories.png", "pressures.png", "training.png", "best_episode.mp4", "best_episode_frames.png"):
         assert (out / name).stat().st_size > 0, name
     board = json.loads((out / "leaderboard.json").read_text())
-    assert len(board["agents"]) == 3  # two threshold saves and the final agent (last.pt)
+    # two threshold saves, the best by the evaluations during training, the final agent (last.pt)
+    assert len(board["agents"]) == 4 and any(a["agent"].endswith("best_eval") for a in board["agents"])
     assert board["seeds"] == [0, 1] and board["errors"] == []
     rows = list(csv.DictReader((out / "leaderboard.csv").open()))
     assert [r["agent"] for r in rows] == [a["agent"] for a in board["agents"]]
-    keys = [(-a["walk_pass_rate"], -a["distance_mean"]) for a in board["agents"]]
+    keys = [(-a["walk_pass_rate"], -a["stand_rate"], -a["distance_mean"]) for a in board["agents"]]
     assert keys == sorted(keys)
     # best.pt is the leaderboard's first agent, loadable without executing code.
     best = torch.load(out / "best.pt", weights_only=True)
@@ -156,10 +157,10 @@ def test_eval_of_a_run_directory_end_to_end(trained_run, tmp_path):
     source = torch.load(first["path"], weights_only=True)["actor"]
     assert all(torch.equal(best["actor"][k], source[k]) for k in source)
     selection = json.loads((out / "selection.json").read_text())
-    assert selection["best"] == first["agent"] and "ranks first of 3" in selection["reason"]
+    assert selection["best"] == first["agent"] and "ranks first of 4" in selection["reason"]
     # Per-step data: one record per agent and episode, one row per control step.
     records = [json.loads(line) for line in (out / "episodes.jsonl").open()]
-    assert len(records) == 6
+    assert len(records) == 8  # 4 agents x 2 episodes
     for r in records:
         assert len(r["steps"]["x_m"]) == round(r["duration_s"] / 0.025) == len(r["steps"]["pressure_kpa"])
     # The video is a real H.264 stream of the best agent's first episode (+1 frame: the start pose).
@@ -175,7 +176,7 @@ def test_eval_of_a_run_directory_end_to_end(trained_run, tmp_path):
 def test_parallel_and_single_worker_results_are_identical(trained_run):
     cfg = to_object(compose_config("eval.episodes=3", "eval.episode_s=3.0", "eval.walk_duration_s=3.0"))
     agents, kwargs, errors = load_agents(str(trained_run), cfg)
-    assert not errors and len(agents) == 3
+    assert not errors and len(agents) == 4
     serial = evaluate_agents(agents, kwargs, 3, seed=5, workers=1)
     parallel = evaluate_agents(agents, kwargs, 3, seed=5, workers=2)
     assert serial == parallel  # every float of every step
@@ -278,6 +279,6 @@ def test_find_checkpoints_in_a_folder_of_runs(trained_run, tmp_path):
         shutil.copytree(trained_run / "checkpoints", sweep / name / "checkpoints",
                         ignore=shutil.ignore_patterns("buffer*"))
     found = find_checkpoints(str(sweep))
-    assert len(found) == 6 and {p.parent.parent.name for p in found} == {"0", "1"}
-    assert len(find_checkpoints(str(sweep), include_last=False)) == 4
+    assert len(found) == 8 and {p.parent.parent.name for p in found} == {"0", "1"}
+    assert len(find_checkpoints(str(sweep), include_last=False)) == 6  # 2 saved + best_eval per run
     assert len(find_checkpoints(str(trained_run / "checkpoints" / "last.pt"))) == 1
