@@ -44,6 +44,13 @@ def _batch(n: int = 64, terminated_every: int = 5):
     }, batch_size=[n])
 
 
+def _critic_loss(learner, batch) -> float:
+    nxt = batch["next"]
+    with torch.no_grad():
+        return float(learner.critic_loss(batch["observation"], batch["action"], nxt["reward"], nxt["observation"],
+                                         nxt["terminated"]))
+
+
 def _copy_into(params, nets) -> None:
     """Write each net's parameters into TorchRL's (possibly stacked) parameter TensorDict."""
     flat = params.flatten_keys()
@@ -114,19 +121,12 @@ def test_learner_updates_fit_the_critic_and_move_the_targets(name):
     torch.manual_seed(0)
     learner = agents.make_learner(AlgoConfig(name=name, critic_lr=1e-3), 43, 10, SPEC)
     batch = _batch()
-    nxt = batch["next"]
-
-    def critic_loss():
-        with torch.no_grad():
-            return float(learner.critic_loss(batch["observation"], batch["action"], nxt["reward"],
-                                             nxt["observation"], nxt["terminated"]))
-
-    first = critic_loss()
+    first = _critic_loss(learner, batch)
     actor_before = learner.actor.module.net[0].weight.detach().clone()
     target_before = learner.actor_target.net[0].weight.detach().clone()
     for _ in range(30):
         learner.update(batch)
-    assert critic_loss() < 0.5 * first
+    assert _critic_loss(learner, batch) < 0.5 * first
     moved = learner.actor.module.net[0].weight.detach() - actor_before
     assert moved.abs().max() > 0
     target_moved = learner.actor_target.net[0].weight - target_before
@@ -215,17 +215,10 @@ def test_sac_learns_its_critics_and_temperature():
     learner = agents.make_learner(AlgoConfig(name="sac", critic_lr=1e-3, actor_lr=3e-3), 43, 10, SPEC)
     assert len(learner.critics) == 2 and learner.log_alpha.item() == 0.0
     batch = _batch()
-    nxt = batch["next"]
-
-    def critic_loss():
-        with torch.no_grad():
-            return float(learner.critic_loss(batch["observation"], batch["action"], nxt["reward"],
-                                             nxt["observation"], nxt["terminated"]))
-
-    first = critic_loss()
+    first = _critic_loss(learner, batch)
     for _ in range(30):
         learner.update(batch)
-    assert critic_loss() < 0.5 * first
+    assert _critic_loss(learner, batch) < 0.5 * first
     assert learner.log_alpha.item() < 0  # entropy of a fresh policy (std ~1) is far above -10
     assert set(learner.policy_state()) == set(agents.ThesisActor(43, 10, (400, 300), 3e-3).state_dict())
     state = learner.state_dict()
