@@ -207,8 +207,9 @@ class Learner:
         # fused: one kernel per step for all parameters, ~15 % faster updates on 2 CPU cores
         self.critic_opt = torch.optim.Adam(self.critic_params, lr=cfg.critic_lr, fused=True)
         self.actor_opt = torch.optim.Adam(self.actor_params, lr=cfg.actor_lr, fused=True)
-        self._pairs = [(list(self.actor_target.parameters()), self.actor_params),
-                       (list(self.critic_targets.parameters()), self.critic_params)]
+        self._pairs = [(list(self.critic_targets.parameters()), self.critic_params)]
+        if cfg.name != "sac":  # SAC bootstraps from its current actor: no actor target to follow
+            self._pairs.append((list(self.actor_target.parameters()), self.actor_params))
         self.log_alpha = torch.tensor(math.log(cfg.init_alpha), requires_grad=True)  # SAC's temperature
         self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=cfg.actor_lr)
         self.target_entropy = cfg.target_entropy * action_size
