@@ -14,7 +14,9 @@ wall-clock time and the frames to two milestones:
 The sized robot stands passively at zero command, so an untrained actor (whose outputs
 start near 0) passes *stand* at the first evaluation. The row therefore also gives
 **stand, learned**: the first evaluation after the actor's first update
-(``train.actor_start_frames``, ``train.init_random_frames``) in which every episode stands.
+(``train.actor_start_frames``, ``train.init_random_frames``) in which every episode stands
+(``pamrun.train.stands_learned``: the milestone at which ``train.walk_kvx``'s curriculum
+starts walking; the row gives its frames as ``walk_kvx_from_frames``).
 
 It prints one row per seed and the median over seeds (a milestone not reached counts as
 not reached, never as the budget), and appends one JSON line per seed to
@@ -39,32 +41,27 @@ RESULTS = Path(__file__).parent / "results" / "time_to_walk.jsonl"
 
 def milestones(run: Path) -> dict:
     """Wall time and frames to stand and to walk, and the best evaluation, from a run's files."""
+    from pamrun.train import actor_learns_from, saved_run_config, stands_learned
+
     rows = list(csv.DictReader((run / "evals.csv").open())) if (run / "evals.csv").exists() else []
     info = json.loads((run / "run.json").read_text()) if (run / "run.json").exists() else {}
     out = {"run": str(run), "evaluations": len(rows), "status": info.get("status"), "frames": info.get("frames"),
-           "wall_time_s": info.get("wall_time_s"), "command": info.get("command"), "git_commit": info.get("git_commit")}
-    learning = actor_learns_from(run)
+           "wall_time_s": info.get("wall_time_s"), "command": info.get("command"), "git_commit": info.get("git_commit"),
+           "walk_kvx_from_frames": info.get("walk_kvx_from_frames")}
+    cfg = saved_run_config(run)
+    learning = actor_learns_from(cfg)
     out["actor_learns_from_frames"] = learning
-    for name, column, since in (("stand", "stand_rate", 0), ("stand_learned", "stand_rate", learning),
-                                ("walk", "walk_pass_rate", 0)):
-        first = next((r for r in rows if float(r[column]) >= 1.0 and int(r["frames"]) >= since), None)
+    for name, reached in (("stand", lambda r: float(r["stand_rate"]) >= 1.0),
+                          ("stand_learned", lambda r: stands_learned(float(r["stand_rate"]), int(r["frames"]), cfg)),
+                          ("walk", lambda r: float(r["walk_pass_rate"]) >= 1.0)):
+        first = next((r for r in rows if reached(r)), None)
         out[f"{name}_s"] = float(first["wall_time_s"]) if first else None
         out[f"{name}_frames"] = int(first["frames"]) if first else None
     for key in ("stand_rate", "walk_pass_rate", "distance_mean", "duration_mean"):
         out[f"best_{key}"] = max((float(r[key]) for r in rows), default=None)
-    learned = [r for r in rows if int(r["frames"]) >= learning]  # the untrained actor stands
+    learned = [r for r in rows if int(r["frames"]) > learning]  # the untrained actor stands
     out["best_duration_mean_learned"] = max((float(r["duration_mean"]) for r in learned), default=None)
     return out
-
-
-def actor_learns_from(run: Path) -> int:
-    """Frames at the run's first actor update (after its random phase and critic warm-up); an
-    evaluation at these frames comes after it."""
-    import yaml
-
-    path = run / "pamrun_config.yaml"
-    t = (yaml.safe_load(path.read_text()) or {}).get("train", {}) if path.exists() else {}
-    return max(int(t.get("init_random_frames", 0)), int(t.get("actor_start_frames", 0)))
 
 
 def train(preset: str, seed: int, minutes: float, extra: list[str], root: Path) -> Path:

@@ -51,13 +51,19 @@ def read_json(path: Path) -> dict[str, Any]:
     return json.loads(path.read_text()) if path.exists() else {}
 
 
-def git_commit() -> str | None:
-    """The commit of the pamrun checkout that runs, if it is a git checkout."""
+def git_commit(here: Path | None = None) -> str | None:
+    """The commit of the pamrun checkout that runs (or of ``here``), if it is a git checkout;
+    ``-dirty`` appended when its tracked files differ from that commit (the run's code is
+    then not the commit's)."""
+    here = here or Path(__file__).parent
     try:
-        return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True,
-                              cwd=Path(__file__).parent).stdout.strip()
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True,
+                                cwd=here).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
+                               text=True, check=True, cwd=here).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return None
+    return commit + ("-dirty" if dirty else "")
 
 
 def package_versions() -> dict[str, str]:

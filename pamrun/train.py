@@ -261,6 +261,7 @@ def train(dcfg: DictConfig) -> None:
     log = EpisodeLog(out, cfg.train.avg_window, SummaryWriter(str(out / "tensorboard")), counters["episodes"])
     tracker = EpisodeTracker()
     evals = EvalLog(out, cfg, log.writer) if cfg.train.eval_every_frames else None
+    curriculum = WalkCurriculum(cfg, EvalLog.read(out / "evals.csv") if resuming and evals else [])
     run_info = start_run_info(out, cfg, resuming, frames)
     saved = checkpoints.scan_saved(ckpt_dir)
     collector = make_collector(cfg, learner.explore, cfg.train.max_frames - frames,
@@ -281,7 +282,7 @@ def train(dcfg: DictConfig) -> None:
             learn_frames = frames - max(cfg.train.init_random_frames, frames - n)  # frames past the random phase
             if learn_frames > 0:
                 update_budget = learn(learner, buffer, log, update_budget + learn_frames * cfg.train.updates_per_frame,
-                                      actor=frames >= cfg.train.actor_start_frames)
+                                      actor=frames >= cfg.train.actor_start_frames, relabel=curriculum.relabel)
                 collector.update_policy_weights_()
             agents.set_noise_scale(learner.explore, agents.noise_scale(cfg.algo, frames))
             log.batch(cfg, frames, learner.updates, clock.seconds(), progress)
@@ -291,6 +292,12 @@ def train(dcfg: DictConfig) -> None:
             if evals and frames % cfg.train.eval_every_frames < n:
                 result = evals.run(learner.actor.module, learner.policy_state(), cfg,
                                    run_counters(frames, log, learner, clock))
+                if curriculum.observe(result["stand_rate"], frames):
+                    log.writer.add_scalar("curriculum/kvx", curriculum.kvx, frames)
+                    run_info["walk_kvx_from_frames"] = frames
+                    console.print(f"Stands in every evaluation episode at {frames} frames: the learner's forward "
+                                  f"weight is now train.walk_kvx = {curriculum.kvx:g} (was reward.kvx = "
+                                  f"{cfg.reward.kvx:g}).")
                 if result["walk_test"] and cfg.train.stop_on_walk:
                     status = "walked"
                     break
@@ -378,7 +385,53 @@ def record_episodes(finished: list[dict], cfg: Config, learner, log: "EpisodeLog
     return saved
 
 
-def learn(learner, buffer, log: "EpisodeLog", budget: float, actor: bool = True) -> float:
+def actor_learns_from(cfg: Config) -> int:
+    """Frames at the run's first actor update (after its random phase and critic warm-up)."""
+    return max(cfg.train.init_random_frames, cfg.train.actor_start_frames)
+
+
+def stands_learned(stand_rate: float, frames: int, cfg: Config) -> bool:
+    """The "stand, learned" milestone: every evaluation episode lasts the full episode, in an
+    evaluation after the actor's first update (the sized robot stands passively at zero
+    command, so an untrained actor stands too: standing only counts once the actor learns)."""
+    return stand_rate >= 1.0 and frames > actor_learns_from(cfg)
+
+
+class WalkCurriculum:
+    """``train.walk_kvx``: stand first, then walk.
+
+    Until the "stand, learned" milestone the learner optimises the env's reward; from it on,
+    every replayed transition's reward gets (walk_kvx - reward.kvx) Vx added, Vx being the
+    torso's forward velocity after the step (the next observation's ``torso_velocity``), so
+    the reward the critics learn is the env's with the forward weight walk_kvx, for old
+    transitions as for new. A transition whose physics blew up keeps its reward (0). The
+    stage is a function of evals.csv, so a resumed run takes it up where it was.
+    """
+
+    def __init__(self, cfg: Config, rows: list[dict]):
+        from pamrun.env import observation_structure, space_sizes
+
+        self.cfg, self.kvx, self.walking = cfg, cfg.train.walk_kvx, False
+        self.vx = observation_structure(space_sizes(cfg.muscle)[1])["torso_velocity"].start
+        for row in rows:
+            self.observe(float(row["stand_rate"]), int(row["frames"]))
+
+    def observe(self, stand_rate: float, frames: int) -> bool:
+        """Take an evaluation into account; True when it starts the walking stage."""
+        if self.kvx is None or self.walking or not stands_learned(stand_rate, frames, self.cfg):
+            return False
+        self.walking = True
+        return True
+
+    def relabel(self, samples) -> None:
+        """The walking stage's reward, in place, on a replay sample."""
+        if self.walking and self.kvx != self.cfg.reward.kvx:
+            nxt = samples["next"]
+            vx = nxt["observation"][..., self.vx:self.vx + 1] * ~nxt["physics_error"].reshape(nxt["reward"].shape)
+            nxt["reward"] += (self.kvx - self.cfg.reward.kvx) * vx
+
+
+def learn(learner, buffer, log: "EpisodeLog", budget: float, actor: bool = True, relabel=None) -> float:
     """Spend the whole updates of ``budget`` on replay samples; return the fraction left.
 
     The buffer does not change between these updates, so their samples are drawn in one
@@ -388,6 +441,8 @@ def learn(learner, buffer, log: "EpisodeLog", budget: float, actor: bool = True)
     if n:
         batch = learner.cfg.batch_size
         samples = buffer.sample(n * batch).reshape(n, batch)
+        if relabel is not None:
+            relabel(samples)
         for i in range(n):
             learner.update(samples[i], actor)
             if learner.updates % 50 == 0:
@@ -610,10 +665,14 @@ def best_eval_text(out: Path) -> str:
 
 
 def load_run_config(out: Path) -> Config:
-    path = out / "pamrun_config.yaml"
-    if not (out / "checkpoints" / "last.pt").exists() or not path.exists():
+    if not (out / "checkpoints" / "last.pt").exists() or not (out / "pamrun_config.yaml").exists():
         raise SystemExit(f"pamrun: {out} holds no training run to resume (no checkpoints/last.pt)")
-    saved = upgrade_saved_config(OmegaConf.to_container(OmegaConf.load(path)))
+    return saved_run_config(out)
+
+
+def saved_run_config(out: Path) -> Config:
+    """The config a run directory's pamrun_config.yaml holds, over today's defaults."""
+    saved = upgrade_saved_config(OmegaConf.to_container(OmegaConf.load(out / "pamrun_config.yaml")))
     return to_object(OmegaConf.merge(OmegaConf.structured(Config), saved))
 
 

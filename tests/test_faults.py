@@ -217,3 +217,19 @@ def test_a_full_disk_stops_the_run_with_a_message_not_a_bus_error(small_disk):
     assert "not enough disk space for a checkpoint" in last and "MB free" in last and str(run_dir) in last
     assert json.loads((run_dir / "run.json").read_text())["status"] == "checkpoint_failed"
     assert not list((run_dir / "checkpoints").glob("buffer*"))  # no half-written buffer left behind
+
+
+def test_git_commit_says_when_the_code_is_not_the_commit(tmp_path):
+    """run.json's git_commit gets ``-dirty`` when tracked files differ from the commit."""
+    from pamrun.runio import git_commit
+
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-C", str(tmp_path)]
+    subprocess.run(["git", "init", "-q", str(tmp_path)], check=True)
+    (tmp_path / "a.py").write_text("x = 1\n")
+    subprocess.run([*git, "add", "a.py"], check=True)
+    subprocess.run([*git, "commit", "-qm", "a"], check=True)
+    head = subprocess.run([*git, "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
+    (tmp_path / "untracked.txt").write_text("not code\n")
+    assert git_commit(tmp_path) == head
+    (tmp_path / "a.py").write_text("x = 2\n")
+    assert git_commit(tmp_path) == head + "-dirty"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import csv
 import json
 
@@ -200,3 +201,54 @@ def test_async_collection(tmp_path):
     rows = list(csv.DictReader((run_dir / "episodes.csv").open()))
     assert [int(r["episode"]) for r in rows] == list(range(1, run["episodes"] + 1))
     assert sum(int(r["length"]) for r in rows) <= 600
+
+
+def test_walk_curriculum_relabels_to_the_reward_with_walk_kvx(cfg):
+    """``train.walk_kvx``: a relabelled transition's reward is the one the env pays with
+    reward.kvx = walk_kvx for the same step (same start, same actions)."""
+    from pamrun.train import WalkCurriculum, make_env
+
+    cfg.train.walk_kvx, cfg.train.init_random_frames = 4.0, 1000
+    rollouts = []
+    for kvx in (cfg.reward.kvx, 4.0):
+        walk_cfg = copy.deepcopy(cfg)
+        walk_cfg.reward.kvx = kvx
+        env = make_env(walk_cfg)
+        env.set_seed(0)
+        torch.manual_seed(0)  # the same random actions
+        rollouts.append(env.rollout(60, break_when_any_done=True))
+        env.close()
+    base, walk = rollouts
+    assert torch.equal(base["action"], walk["action"]) and len(base) > 10
+    curriculum = WalkCurriculum(cfg, [{"stand_rate": "1.0", "frames": "1000"}])  # the untrained actor stands: not yet
+    assert not curriculum.walking
+    relabelled = base.clone()
+    curriculum.relabel(relabelled)
+    assert torch.equal(relabelled["next", "reward"], base["next", "reward"])
+    assert not torch.allclose(base["next", "reward"], walk["next", "reward"])
+    assert curriculum.observe(0.9, 2000) is False and curriculum.observe(1.0, 2000) is True
+    assert curriculum.observe(1.0, 3000) is False  # it starts once
+    curriculum.relabel(relabelled)
+    assert torch.allclose(relabelled["next", "reward"], walk["next", "reward"], atol=1e-5)
+    assert WalkCurriculum(cfg, [{"stand_rate": "0.5", "frames": "1200"}, {"stand_rate": "1", "frames": "1400"}]).walking
+    cfg.train.walk_kvx = None
+    assert not WalkCurriculum(cfg, [{"stand_rate": "1", "frames": "1400"}]).walking
+
+
+def test_walk_curriculum_in_a_run(tmp_path):
+    """A run with train.walk_kvx starts the walking stage at its first standing evaluation after
+    the actor learns, says so, and records it in run.json and TensorBoard."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    run_dir = tmp_path / "curriculum"
+    proc = run_pamrun("train", *TINY, "train.eval_every_frames=200", "train.eval_episodes=1", "train.walk_kvx=4",
+                      "eval.episode_s=0.25", "eval.walk_duration_s=0.25", f"hydra.run.dir={run_dir}")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    rows = list(csv.DictReader((run_dir / "evals.csv").open()))
+    first = next(int(r["frames"]) for r in rows if float(r["stand_rate"]) == 1 and int(r["frames"]) > 200)
+    assert json.loads((run_dir / "run.json").read_text())["walk_kvx_from_frames"] == first
+    assert "train.walk_kvx = 4" in proc.stdout
+    events = EventAccumulator(str(run_dir / "tensorboard")).Reload()
+    assert [(e.step, e.value) for e in events.Scalars("curriculum/kvx")] == [(first, 4.0)]
+    proc = run_pamrun("train", "train.walk_kvx=4", "train.eval_every_frames=0", f"hydra.run.dir={tmp_path / 'x'}")
+    assert proc.returncode != 0 and "train.walk_kvx" in proc.stderr + proc.stdout

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
+from typing import Optional
 
 from pamrun.config.checks import _non_negative, _positive, _require
 
@@ -83,6 +85,11 @@ class TrainConfig:
     eval_every_frames: int = 20_000  # evaluate the actor this often; 0 = never
     eval_episodes: int = 10  # episodes per evaluation (the walk test's 10)
     stop_on_walk: bool = False  # stop the run once an evaluation passes the walk test (status: walked)
+    # Curriculum, stand then walk: once an evaluation after the actor's first update stands in
+    # every episode (the "stand, learned" milestone), the learner's reward weighs the forward
+    # velocity by walk_kvx instead of reward.kvx: every replayed transition, old or new, gets
+    # r + (walk_kvx - reward.kvx) Vx. The env, its logs and pamrun eval keep reward.kvx. None = off.
+    walk_kvx: Optional[float] = None
 
     def __post_init__(self) -> None:
         for name in ("max_episodes", "max_frames", "avg_window", "keep_saved", "workers", "frames_per_batch",
@@ -95,4 +102,7 @@ class TrainConfig:
                  "needs evaluations during training (train.eval_every_frames > 0)")
         _require(self.init_random_frames >= 0, "init_random_frames", "must be >= 0")
         _require(self.actor_start_frames >= 0, "actor_start_frames", "must be >= 0")
+        _require(self.walk_kvx is None or self.eval_every_frames > 0, "walk_kvx",
+                 "needs evaluations during training (train.eval_every_frames > 0) to know when the agent stands")
+        _require(self.walk_kvx is None or math.isfinite(self.walk_kvx), "walk_kvx", "must be finite")
         _require(self.threads >= 0, "threads", f"must be >= 0 (0 = automatic), got {self.threads}")
