@@ -246,7 +246,7 @@ def train(dcfg: DictConfig) -> None:
     from pamrun.env import space_sizes
 
     console = Console()
-    cfg, out, resuming = open_run(to_object(dcfg), run_dir(), console)
+    cfg, out, resuming = open_run(to_object(dcfg), run_dir(), console, HydraConfig.get().overrides.task)
     ckpt_dir = out / "checkpoints"
     seed_everything(cfg.seed)
     torch.set_num_threads(cfg.train.threads or max(1, usable_cores() - cfg.train.workers + 1))
@@ -255,7 +255,8 @@ def train(dcfg: DictConfig) -> None:
     counters = resume(out, learner, buffer) if resuming else dict(NEW_RUN)
     if counters["frames"] >= cfg.train.max_frames or counters["episodes"] >= cfg.train.max_episodes:
         return console.print(f"{out} already finished its budget ({counters['frames']} frames, "
-                             f"{counters['episodes']} episodes): nothing to do.")
+                             f"{counters['episodes']} episodes): nothing to do. To train on, give it a "
+                             f"larger one: pamrun train resume={out} train.max_frames=...", soft_wrap=True)
     frames = counters["frames"]
     agents.set_noise_scale(learner.explore, agents.noise_scale(cfg.algo, frames))
     log = EpisodeLog(out, cfg.train.avg_window, SummaryWriter(str(out / "tensorboard")), counters["episodes"])
@@ -462,11 +463,17 @@ def check_config(config) -> None:
         raise ConfigError("resume", f"{config.resume}: no training run to resume there (no checkpoints/last.pt)")
 
 
-def open_run(cfg: Config, out: Path, console) -> tuple[Config, Path, bool]:
+# What a resume takes from its command line: the budget (wall time counts the run's whole time).
+RESUME_BUDGET = ("train.max_frames", "train.max_episodes", "train.max_minutes")
+
+
+def open_run(cfg: Config, out: Path, console, overrides: list[str] = ()) -> tuple[Config, Path, bool]:
     """The config to run with and whether it resumes.
 
     ``resume=<dir>``, or the same command again in a directory whose run has a checkpoint,
-    continues that run with its own config; another command there is refused. Files of a
+    continues that run with its own config; another command there is refused. A resume
+    takes from its command line (``overrides``) only a new budget (``RESUME_BUDGET``, kept
+    in the run's pamrun_config.yaml) and names every other value it ignores. Files of a
     run killed before its first checkpoint are moved aside (``aborted-<time>/``) and the
     run starts clean, saying so."""
     text = OmegaConf.to_yaml(OmegaConf.structured(cfg))
@@ -478,8 +485,20 @@ def open_run(cfg: Config, out: Path, console) -> tuple[Config, Path, bool]:
                              "or choose another hydra.run.dir")
         console.print(f"{out} holds this run's last checkpoint: continuing it (same command).")
     if cfg.resume or has_checkpoint:
-        cfg = load_run_config(out)
-        console.print(f"Resuming {out} with its own config ({cfg.algo.name}); command-line values are ignored.")
+        given, cfg = cfg, load_run_config(out)
+        keys = {o.split("=", 1)[0].lstrip("+~"): o for o in overrides} if given.resume else {}  # else: the same
+        budget = [k for k in RESUME_BUDGET if k in keys
+                  and getattr(given.train, k.split(".", 1)[1]) != getattr(cfg.train, k.split(".", 1)[1])]
+        ignored = [o for k, o in keys.items() if k not in RESUME_BUDGET and k != "resume"]
+        for key in budget:
+            name = key.split(".", 1)[1]
+            console.print(f"New budget: {key} {getattr(cfg.train, name)} -> {getattr(given.train, name)}")
+            setattr(cfg.train, name, getattr(given.train, name))
+        if budget:
+            saved.write_text(OmegaConf.to_yaml(OmegaConf.structured(cfg)))
+        console.print(f"Resuming {out} with its own config ({cfg.algo.name})"
+                      + (f"; ignored (a resume only takes {', '.join(RESUME_BUDGET)}): {' '.join(ignored)}"
+                         if ignored else "."), soft_wrap=True)
         return cfg, out, True
     leftovers = [out / name for name in LEFTOVERS if (out / name).exists()]
     leftovers += sorted((out / "checkpoints").glob("*"))

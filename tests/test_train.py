@@ -252,3 +252,23 @@ def test_walk_curriculum_in_a_run(tmp_path):
     assert [(e.step, e.value) for e in events.Scalars("curriculum/kvx")] == [(first, 4.0)]
     proc = run_pamrun("train", "train.walk_kvx=4", "train.eval_every_frames=0", f"hydra.run.dir={tmp_path / 'x'}")
     assert proc.returncode != 0 and "train.walk_kvx" in proc.stderr + proc.stdout
+
+
+def test_resume_takes_a_new_budget_and_names_what_it_ignores(tmp_path):
+    """``resume=<dir> train.max_frames=...`` extends a finished run; any other value on a resume's
+    command line is named as ignored, and the run keeps its own config."""
+    from pamrun.train import saved_run_config
+
+    run_dir = tmp_path / "extend"
+    proc = run_pamrun("train", *TINY, "train.eval_every_frames=0", f"hydra.run.dir={run_dir}")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    proc = run_pamrun("train", f"resume={run_dir}", "train.max_frames=800", "algo.actor_lr=0.5")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = " ".join(proc.stdout.split())
+    assert "train.max_frames 600 -> 800" in out and "ignored" in out and "algo.actor_lr=0.5" in out
+    run = json.loads((run_dir / "run.json").read_text())
+    assert run["status"] == "max_frames" and run["frames"] == 800
+    saved = saved_run_config(run_dir)
+    assert saved.train.max_frames == 800 and saved.algo.actor_lr == 1e-3
+    proc = run_pamrun("train", f"resume={run_dir}")
+    assert proc.returncode == 0 and "already finished its budget (800 frames" in " ".join(proc.stdout.split())
