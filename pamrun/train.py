@@ -263,6 +263,9 @@ def train(dcfg: DictConfig) -> None:
     tracker = EpisodeTracker()
     evals = EvalLog(out, cfg, log.writer) if cfg.train.eval_every_frames else None
     curriculum = WalkCurriculum(cfg, EvalLog.read(out / "evals.csv") if resuming and evals else [])
+    if curriculum.walking:
+        console.print(f"Walking stage of the curriculum (since {run_info_walk_from(out)} frames): the learner's "
+                      f"forward weight is train.walk_kvx = {curriculum.kvx:g}.", soft_wrap=True)
     run_info = start_run_info(out, cfg, resuming, frames)
     saved = checkpoints.scan_saved(ckpt_dir)
     collector = make_collector(cfg, learner.explore, cfg.train.max_frames - frames,
@@ -428,8 +431,15 @@ class WalkCurriculum:
         """The walking stage's reward, in place, on a replay sample."""
         if self.walking and self.kvx != self.cfg.reward.kvx:
             nxt = samples["next"]
-            vx = nxt["observation"][..., self.vx:self.vx + 1] * ~nxt["physics_error"].reshape(nxt["reward"].shape)
+            ok = nxt["physics_error"].reshape(nxt["reward"].shape).logical_not()  # bool, or a collector's 0/1
+            vx = nxt["observation"][..., self.vx:self.vx + 1] * ok
             nxt["reward"] += (self.kvx - self.cfg.reward.kvx) * vx
+
+
+def run_info_walk_from(out: Path):
+    """The frames at which a run's walking stage started (run.json), or '?' if not recorded."""
+    path = out / "run.json"
+    return (read_json(path) if path.exists() else {}).get("walk_kvx_from_frames", "?")
 
 
 def learn(learner, buffer, log: "EpisodeLog", budget: float, actor: bool = True, relabel=None) -> float:
@@ -635,7 +645,8 @@ def header_table(cfg: Config, out: Path):
                       + (f"initial alpha {a.init_alpha:g}" if a.name == "sac" else f"noise var {a.noise_variance:g}")),
         ("robot", f"H {cfg.body.height_m} m, M {cfg.body.mass_kg} kg, coupling {cfg.muscle.coupling}"),
         ("reward", f"kvx {cfg.reward.kvx}, ky {cfg.reward.ky}, kz {cfg.reward.kz}, kv {cfg.reward.kv}, "
-                   f"kt {cfg.reward.kt}"),
+                   f"kt {cfg.reward.kt}"
+                   + (f"; kvx {t.walk_kvx:g} once it stands (train.walk_kvx)" if t.walk_kvx is not None else "")),
         ("budget", f"{t.max_frames} frames / {t.max_episodes} episodes"
                    + (f" / {t.max_minutes:g} min" if t.max_minutes else "")
                    + (f", stop at average {t.target_avg_reward:g}" if t.target_avg_reward else "")),

@@ -241,15 +241,20 @@ def test_walk_curriculum_in_a_run(tmp_path):
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
     run_dir = tmp_path / "curriculum"
-    proc = run_pamrun("train", *TINY, "train.eval_every_frames=200", "train.eval_episodes=1", "train.walk_kvx=4",
-                      "eval.episode_s=0.25", "eval.walk_duration_s=0.25", f"hydra.run.dir={run_dir}")
+    proc = run_pamrun("train", *TINY, "train.max_frames=1000", "train.eval_every_frames=200", "train.eval_episodes=1",
+                      "train.walk_kvx=4", "eval.episode_s=0.25", "eval.walk_duration_s=0.25", f"hydra.run.dir={run_dir}")
     assert proc.returncode == 0, proc.stderr[-3000:]
     rows = list(csv.DictReader((run_dir / "evals.csv").open()))
     first = next(int(r["frames"]) for r in rows if float(r["stand_rate"]) == 1 and int(r["frames"]) > 200)
+    assert first < 1000  # the learner then learns from relabelled samples of the collector's batches
+    assert json.loads((run_dir / "run.json").read_text())["updates"] == 200
     assert json.loads((run_dir / "run.json").read_text())["walk_kvx_from_frames"] == first
     assert "train.walk_kvx = 4" in proc.stdout
     events = EventAccumulator(str(run_dir / "tensorboard")).Reload()
     assert [(e.step, e.value) for e in events.Scalars("curriculum/kvx")] == [(first, 4.0)]
+    proc = run_pamrun("train", f"resume={run_dir}", "train.max_frames=1200")  # the stage carries over a resume
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert f"Walking stage of the curriculum (since {first} frames)" in " ".join(proc.stdout.split())
     proc = run_pamrun("train", "train.walk_kvx=4", "train.eval_every_frames=0", f"hydra.run.dir={tmp_path / 'x'}")
     assert proc.returncode != 0 and "train.walk_kvx" in proc.stderr + proc.stdout
 
