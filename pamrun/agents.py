@@ -170,29 +170,27 @@ def set_noise_scale(explore: TensorDictSequential, scale: float) -> None:
 
 
 class Learner:
-    """Everything that learns, for any algorithm: networks, targets, exploration, optimisers.
+    """DDPG's learner, and the base of every algorithm's: networks, targets, exploration, optimisers.
 
     ``update(sample)`` is one gradient step of the critic(s) and, every
     ``actor_update_every`` steps, of the actor and a soft update of every target network.
-    It computes exactly what TorchRL's ``DDPGLoss`` (``ddpg``) and ``TD3Loss`` (``td3``) do
-    with ``delay_actor=delay_value=True`` and a TD(0) target (a test checks loss values and
-    gradients against them), but on plain tensors: on 2 CPU cores the losses' TensorDict
-    and vmap plumbing costs a third of an update (benchmarks/train_throughput.py).
+    It computes exactly what TorchRL's ``DDPGLoss`` (``ddpg``) and ``TD3Loss`` (``td3``,
+    :class:`TD3Learner`) do with ``delay_actor=delay_value=True`` and a TD(0) target (a test
+    checks loss values and gradients against them), but on plain tensors: on 2 CPU cores
+    the losses' TensorDict and vmap plumbing costs a third of an update
+    (benchmarks/train_throughput.py).
 
-    * critic target: y = r + gamma (1 - terminated) min_k Q'_k(s', a'), with
-      a' = pi'(s') (DDPG) or clamp(pi'(s') + clamp(N(0, policy_noise), +-noise_clip))
-      (TD3, target policy smoothing);
+    * critic target: y = r + gamma (1 - terminated) min_k Q'_k(s', a'), with a' = pi'(s')
+      (:meth:`next_action`; TD3 adds its target policy smoothing);
     * critic loss: sum over the critics of mean(loss_function(Q_k(s, a), y));
     * actor loss: -mean(Q_1(s, pi(s)));
     * targets: theta' <- theta' + tau (theta - theta') (TorchRL's ``SoftUpdate``).
 
-    ``sac`` (Haarnoja et al. 2018, as CleanRL's ``sac_continuous_action.py``): twin critics,
-    a' ~ pi(s') and y = r + gamma (1 - terminated) (min_k Q'_k(s', a') - alpha log pi(a'|s'));
-    actor loss mean(alpha log pi(a|s) - min_k Q_k(s, a)) with a ~ pi(s) reparametrised;
-    alpha learned towards an entropy of ``target_entropy`` per action. Its tanh change of
-    variables makes saturated actions improbable, where a deterministic actor drifts into
-    full-band commands.
+    An algorithm is a subclass that overrides :meth:`next_action`, :meth:`actor_loss` or
+    :meth:`after_actor_step` (``LEARNERS`` maps ``algo.name`` to it).
     """
+
+    follows_actor_target = True  # the actor has a target network that follows it
 
     def __init__(self, cfg: AlgoConfig, obs_size: int, action_size: int, action_spec):
         self.cfg = cfg
@@ -208,11 +206,8 @@ class Learner:
         self.critic_opt = torch.optim.Adam(self.critic_params, lr=cfg.critic_lr, fused=True)
         self.actor_opt = torch.optim.Adam(self.actor_params, lr=cfg.actor_lr, fused=True)
         self._pairs = [(list(self.critic_targets.parameters()), self.critic_params)]
-        if cfg.name != "sac":  # SAC bootstraps from its current actor: no actor target to follow
+        if self.follows_actor_target:
             self._pairs.append((list(self.actor_target.parameters()), self.actor_params))
-        self.log_alpha = torch.tensor(math.log(cfg.init_alpha), requires_grad=True)  # SAC's temperature
-        self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=cfg.actor_lr)
-        self.target_entropy = cfg.target_entropy * action_size
         self._distance = {"l2": nn.functional.mse_loss, "l1": nn.functional.l1_loss,
                           "smooth_l1": nn.functional.smooth_l1_loss}[cfg.loss_function]
         self.updates = 0
@@ -221,38 +216,24 @@ class Learner:
         self._actor_loss: torch.Tensor | None = None
         self._critic_loss: torch.Tensor | None = None
 
+    def next_action(self, next_obs, action) -> tuple[torch.Tensor, torch.Tensor | float]:
+        """The bootstrap action a' and what the target subtracts from min_k Q'_k(s', a')."""
+        return self.actor_target(next_obs), 0.0
+
     def critic_loss(self, obs, action, reward, next_obs, terminated) -> torch.Tensor:
-        cfg = self.cfg
         with torch.no_grad():
-            if cfg.name == "sac":
-                next_action, next_log_prob = self.actor.module.sample(next_obs)
-            else:
-                next_action = self.actor_target(next_obs)
-            if cfg.name == "td3":
-                noise = (torch.randn_like(action) * cfg.policy_noise).clamp(-cfg.noise_clip, cfg.noise_clip)
-                next_action = torch.max(torch.min(next_action + noise, self.high), self.low)
+            next_action, correction = self.next_action(next_obs, action)
             next_q = self.critic_targets[0](next_obs, next_action)
             for target in self.critic_targets[1:]:
                 next_q = torch.min(next_q, target(next_obs, next_action))
-            if cfg.name == "sac":
-                next_q = next_q - self.log_alpha.exp() * next_log_prob
-            y = reward + cfg.gamma * (~terminated) * next_q
+            y = reward + self.cfg.gamma * (~terminated) * (next_q - correction)
         return sum(self._distance(critic(obs, action), y) for critic in self.critics)
 
     def actor_loss(self, obs) -> torch.Tensor:
-        if self.cfg.name == "sac":
-            action, log_prob = self.actor.module.sample(obs)
-            q = torch.min(self.critics[0](obs, action), self.critics[1](obs, action))
-            self._log_prob = log_prob.detach()
-            return (self.log_alpha.exp().detach() * log_prob - q).mean()
         return -self.critics[0](obs, self.actor.module(obs)).mean()
 
-    def alpha_step(self) -> None:
-        """SAC: move alpha so that the policy's entropy approaches the target."""
-        loss = -(self.log_alpha * (self._log_prob + self.target_entropy)).mean()
-        self.alpha_opt.zero_grad()
-        loss.backward()
-        self.alpha_opt.step()
+    def after_actor_step(self) -> None:
+        """What follows each actor step, before the targets' soft update (SAC: its temperature)."""
 
     def update(self, sample, actor: bool = True) -> None:
         """One update on a replay sample (a TensorDict with TorchRL's transition keys); with
@@ -276,8 +257,7 @@ class Learner:
                 p.requires_grad_(True)
             nn.utils.clip_grad_norm_(self.actor_params, self.cfg.grad_clip)
             self.actor_opt.step()
-            if self.cfg.name == "sac":
-                self.alpha_step()
+            self.after_actor_step()
             self.soft_update()
             self._actor_loss = actor_loss.detach()
         self.updates += 1
@@ -310,8 +290,7 @@ class Learner:
         return {"networks": {"actor": self.actor.module.state_dict(), "critics": self.critics.state_dict(),
                              "actor_target": self.actor_target.state_dict(),
                              "critic_targets": self.critic_targets.state_dict()},
-                "actor_opt": self.actor_opt.state_dict(), "critic_opt": self.critic_opt.state_dict(),
-                "log_alpha": self.log_alpha.detach().clone(), "alpha_opt": self.alpha_opt.state_dict()}
+                "actor_opt": self.actor_opt.state_dict(), "critic_opt": self.critic_opt.state_dict()}
 
     def load_state_dict(self, state: dict, updates: int) -> None:
         if "networks" not in state:
@@ -323,11 +302,65 @@ class Learner:
         self.critic_targets.load_state_dict(nets["critic_targets"])
         self.actor_opt.load_state_dict(state["actor_opt"])
         self.critic_opt.load_state_dict(state["critic_opt"])
-        if "log_alpha" in state:
-            with torch.no_grad():
-                self.log_alpha.copy_(state["log_alpha"])
-            self.alpha_opt.load_state_dict(state["alpha_opt"])
         self.updates = updates
+
+
+class TD3Learner(Learner):
+    """TD3 (Fujimoto et al. 2018): twin critics (``n_critics``), delayed actor updates
+    (``algo.actor_update_every``) and target policy smoothing:
+    a' = clamp(pi'(s') + clamp(N(0, policy_noise), +-noise_clip)) inside the action box."""
+
+    def next_action(self, next_obs, action):
+        cfg = self.cfg
+        noise = (torch.randn_like(action) * cfg.policy_noise).clamp(-cfg.noise_clip, cfg.noise_clip)
+        return torch.max(torch.min(self.actor_target(next_obs) + noise, self.high), self.low), 0.0
+
+
+class SACLearner(Learner):
+    """SAC (Haarnoja et al. 2018, as CleanRL's ``sac_continuous_action.py``): twin critics,
+    a' ~ pi(s') and y = r + gamma (1 - terminated) (min_k Q'_k(s', a') - alpha log pi(a'|s'));
+    actor loss mean(alpha log pi(a|s) - min_k Q_k(s, a)) with a ~ pi(s) reparametrised;
+    alpha learned towards an entropy of ``target_entropy`` per action. Its tanh change of
+    variables makes saturated actions improbable, where a deterministic actor drifts into
+    full-band commands. It bootstraps from its current actor: no actor target follows."""
+
+    follows_actor_target = False
+
+    def __init__(self, cfg: AlgoConfig, obs_size: int, action_size: int, action_spec):
+        super().__init__(cfg, obs_size, action_size, action_spec)
+        self.log_alpha = torch.tensor(math.log(cfg.init_alpha), requires_grad=True)  # the temperature
+        self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=cfg.actor_lr)
+        self.target_entropy = cfg.target_entropy * action_size
+
+    def next_action(self, next_obs, action):
+        next_action, next_log_prob = self.actor.module.sample(next_obs)
+        return next_action, self.log_alpha.exp() * next_log_prob
+
+    def actor_loss(self, obs) -> torch.Tensor:
+        action, log_prob = self.actor.module.sample(obs)
+        q = torch.min(self.critics[0](obs, action), self.critics[1](obs, action))
+        self._log_prob = log_prob.detach()
+        return (self.log_alpha.exp().detach() * log_prob - q).mean()
+
+    def after_actor_step(self) -> None:
+        """Move alpha so that the policy's entropy approaches the target."""
+        loss = -(self.log_alpha * (self._log_prob + self.target_entropy)).mean()
+        self.alpha_opt.zero_grad()
+        loss.backward()
+        self.alpha_opt.step()
+
+    def state_dict(self) -> dict:
+        return {**super().state_dict(), "log_alpha": self.log_alpha.detach().clone(),
+                "alpha_opt": self.alpha_opt.state_dict()}
+
+    def load_state_dict(self, state: dict, updates: int) -> None:
+        super().load_state_dict(state, updates)
+        with torch.no_grad():
+            self.log_alpha.copy_(state["log_alpha"])
+        self.alpha_opt.load_state_dict(state["alpha_opt"])
+
+
+LEARNERS = {"ddpg": Learner, "td3": TD3Learner, "sac": SACLearner}  # algo.name -> its learner
 
 
 def n_critics(cfg: AlgoConfig) -> int:
@@ -337,4 +370,4 @@ def n_critics(cfg: AlgoConfig) -> int:
 
 def make_learner(cfg: AlgoConfig, obs_size: int, action_size: int, action_spec) -> Learner:
     """The learner of ``cfg.name`` for an env with these sizes and action spec."""
-    return Learner(cfg, obs_size, action_size, action_spec)
+    return LEARNERS[cfg.name](cfg, obs_size, action_size, action_spec)
