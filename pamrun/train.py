@@ -263,10 +263,11 @@ def train(dcfg: DictConfig) -> None:
     tracker = EpisodeTracker()
     evals = EvalLog(out, cfg, log.writer) if cfg.train.eval_every_frames else None
     curriculum = WalkCurriculum(cfg, EvalLog.read(out / "evals.csv") if resuming and evals else [])
-    if curriculum.walking:
-        console.print(f"Walking stage of the curriculum (since {run_info_walk_from(out)} frames): the learner's "
-                      f"forward weight is train.walk_kvx = {curriculum.kvx:g}.", soft_wrap=True)
     run_info = start_run_info(out, cfg, resuming, frames)
+    if curriculum.walking:
+        run_info.setdefault("walk_kvx_from_frames", curriculum.since)
+        console.print(f"Walking stage of the curriculum (since {curriculum.since} frames): the learner's "
+                      f"forward weight is train.walk_kvx = {curriculum.kvx:g}.", soft_wrap=True)
     saved = checkpoints.scan_saved(ckpt_dir)
     collector = make_collector(cfg, learner.explore, cfg.train.max_frames - frames,
                                max(0, cfg.train.init_random_frames - frames))
@@ -416,6 +417,7 @@ class WalkCurriculum:
         from pamrun.env import observation_structure, space_sizes
 
         self.cfg, self.kvx, self.walking = cfg, cfg.train.walk_kvx, False
+        self.since: int | None = None  # frames of the evaluation that started the walking stage
         self.vx = observation_structure(space_sizes(cfg.muscle)[1])["torso_velocity"].start
         for row in rows:
             self.observe(float(row["stand_rate"]), int(row["frames"]))
@@ -424,7 +426,7 @@ class WalkCurriculum:
         """Take an evaluation into account; True when it starts the walking stage."""
         if self.kvx is None or self.walking or not stands_learned(stand_rate, frames, self.cfg):
             return False
-        self.walking = True
+        self.walking, self.since = True, frames
         return True
 
     def relabel(self, samples) -> None:
@@ -434,12 +436,6 @@ class WalkCurriculum:
             ok = nxt["physics_error"].reshape(nxt["reward"].shape).logical_not()  # bool, or a collector's 0/1
             vx = nxt["observation"][..., self.vx:self.vx + 1] * ok
             nxt["reward"] += (self.kvx - self.cfg.reward.kvx) * vx
-
-
-def run_info_walk_from(out: Path):
-    """The frames at which a run's walking stage started (run.json), or '?' if not recorded."""
-    path = out / "run.json"
-    return (read_json(path) if path.exists() else {}).get("walk_kvx_from_frames", "?")
 
 
 def learn(learner, buffer, log: "EpisodeLog", budget: float, actor: bool = True, relabel=None) -> float:

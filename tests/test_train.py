@@ -227,7 +227,7 @@ def test_walk_curriculum_relabels_to_the_reward_with_walk_kvx(cfg):
     assert torch.equal(relabelled["next", "reward"], base["next", "reward"])
     assert not torch.allclose(base["next", "reward"], walk["next", "reward"])
     assert curriculum.observe(0.9, 2000) is False and curriculum.observe(1.0, 2000) is True
-    assert curriculum.observe(1.0, 3000) is False  # it starts once
+    assert curriculum.observe(1.0, 3000) is False and curriculum.since == 2000  # it starts once
     curriculum.relabel(relabelled)
     assert torch.allclose(relabelled["next", "reward"], walk["next", "reward"], atol=1e-5)
     assert WalkCurriculum(cfg, [{"stand_rate": "0.5", "frames": "1200"}, {"stand_rate": "1", "frames": "1400"}]).walking
