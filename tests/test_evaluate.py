@@ -282,3 +282,19 @@ def test_find_checkpoints_in_a_folder_of_runs(trained_run, tmp_path):
     assert len(found) == 8 and {p.parent.parent.name for p in found} == {"0", "1"}
     assert len(find_checkpoints(str(sweep), include_last=False)) == 6  # 2 saved + best_eval per run
     assert len(find_checkpoints(str(trained_run / "checkpoints" / "last.pt"))) == 1
+
+
+def test_the_shipped_agent_walks(tmp_path):
+    """agents/walk_td3_seed0.pt (train=walk, seed 0, 430,000 frames): ``pamrun eval`` on a fresh
+    clone, video included. Measured: 9 of 10 walk-test episodes pass (the tenth falls after
+    9.3 s), 17.0 m in 10 s on average; the issue's target, 10 of 10, is not yet met."""
+    from pathlib import Path
+
+    agent = Path(__file__).parents[1] / "agents" / "walk_td3_seed0.pt"
+    out = tmp_path / "walker"
+    proc = run_pamrun("eval", f"ckpt={agent}", "eval.render=true", "eval.video_width=320", "eval.video_height=240",
+                      f"hydra.run.dir={out}")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (row,) = json.loads((out / "leaderboard.json").read_text())["agents"]
+    assert row["walk_pass_rate"] >= 0.9 and row["distance_mean"] >= 15.0 and row["distance_min"] >= 7.0
+    assert row["physics_error_rate"] == 0 and (out / "best_episode.mp4").stat().st_size > 50_000
