@@ -493,12 +493,11 @@ def open_run(cfg: Config, out: Path, console, overrides: list[str] = ()) -> tupl
     if cfg.resume or has_checkpoint:
         given, cfg = cfg, load_run_config(out)
         keys = {o.split("=", 1)[0].lstrip("+~"): o for o in overrides} if given.resume else {}  # else: the same
-        budget = [k for k in RESUME_BUDGET if k in keys
-                  and getattr(given.train, k.split(".", 1)[1]) != getattr(cfg.train, k.split(".", 1)[1])]
+        budget = [k.split(".", 1)[1] for k in RESUME_BUDGET if k in keys]
+        budget = [name for name in budget if getattr(given.train, name) != getattr(cfg.train, name)]
         ignored = [o for k, o in keys.items() if k not in RESUME_BUDGET and k != "resume"]
-        for key in budget:
-            name = key.split(".", 1)[1]
-            console.print(f"New budget: {key} {getattr(cfg.train, name)} -> {getattr(given.train, name)}")
+        for name in budget:
+            console.print(f"New budget: train.{name} {getattr(cfg.train, name)} -> {getattr(given.train, name)}")
             setattr(cfg.train, name, getattr(given.train, name))
         if budget:
             saved.write_text(OmegaConf.to_yaml(OmegaConf.structured(cfg)))
