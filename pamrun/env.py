@@ -48,6 +48,13 @@ key of its weight (``kvx``: forward, ``ky``: lateral, ``kz``: height, ``kv``: ef
 ``kt``: alive, ``kda``: command change, ``kfall``: fall), so a term and the ``reward.<key>``
 that scales it share one name.
 
+## Perturbations (``env`` group; ``pamrun eval eval.suite=robustness`` uses them)
+``observation_noise_std`` adds Gaussian noise of that standard deviation (in each value's
+own unit) to the 33 sensed observations, not to the previous action, from the env's seeded
+generator. ``push_impulse_ns`` [x, y, z, world frame, N s] is applied to the torso as a
+constant force from ``push_time_s`` for ``push_duration_s`` rounded to whole control steps
+(at least one), force = impulse / (steps x Ts), so the impulse is exact.
+
 ## Episode end
 Truncation after Tf = 10 s (400 steps). Termination when the torso falls below
 ``fall_height_ratio`` of its standing height, |y| > 0.5 m, |roll|, |pitch| or |yaw| >= pi/4,
@@ -56,7 +63,9 @@ or the physics state is not finite (``info["physics_error"]`` is then True).
 ## info
 ``x``, ``y``, ``z``, ``distance`` (x walked since reset) [m], ``reward_terms``,
 ``pressure_kpa`` and ``contraction_pct`` (10, 2) of the 20 muscles, ``foot_force_n``
-(right, left) [N], ``fell``, ``physics_error``.
+(right, left) [N], ``sole_xyz_m`` (2, 4, 3) the centres of each foot's four contact spheres
+(front left, front right, back left, back right) [m], ``joint_torque_nm`` (10,)
+the muscles' torque on each joint at the end of the step [N m], ``fell``, ``physics_error``.
 """
 
 from __future__ import annotations
@@ -176,9 +185,12 @@ class PamWalkerEnv(gym.Env):
         m = self.model
         self._qpos_idx, self._qvel_idx = body_mod.joint_addresses(m)
         self._torso_id = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body_mod.TORSO)
+        self._sole_ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"{side}_contact_{end}_{edge}")
+                          for side in body_mod.SIDES for end in ("front", "back") for edge in ("left", "right")]
         self._foot_sensor_adr = np.array(
             [m.sensor_adr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, s)] for s in body_mod.FOOT_SENSORS]
         )
+        self.mass_kg = float(m.body_subtreemass[0])  # the whole robot
         self.weight_n = float(m.body_subtreemass[0] * -m.opt.gravity[2])
 
         key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "stand")
@@ -194,6 +206,13 @@ class PamWalkerEnv(gym.Env):
         self._joint_velocities = operator.itemgetter(*self._qvel_idx.tolist())
         self._steps = 0
         self._x0 = 0.0
+        cfg = self.env_cfg
+        self._push_steps = range(0)  # control steps k (1-based, the step that starts at (k - 1) Ts) pushed
+        if any(cfg.push_impulse_ns):
+            n_push = max(1, int(round(cfg.push_duration_s / cfg.control_dt_s)))
+            first = int(round(cfg.push_time_s / cfg.control_dt_s)) + 1
+            self._push_steps = range(first, first + n_push)
+            self._push_force_n = np.asarray(cfg.push_impulse_ns, float) / (n_push * cfg.control_dt_s)
         self._renderer: mujoco.Renderer | None = None
 
     # ------------------------------------------------------------------ gym API
@@ -209,6 +228,7 @@ class PamWalkerEnv(gym.Env):
         if cfg.reset_velocity_noise > 0:
             noise = cfg.reset_velocity_noise
             d.qvel[self._qvel_idx] = self.np_random.uniform(-noise, noise, N_JOINTS)
+        d.xfrc_applied[:] = 0.0
         mujoco.mj_forward(self.model, d)
         self.drive.reset()
         self._prev_action = np.zeros(self.n_actions)
@@ -224,6 +244,8 @@ class PamWalkerEnv(gym.Env):
         m, d, drive = self.model, self.data, self.drive
         dt, nstep = self.env_cfg.muscle_dt_s, self.n_physics_per_muscle
         drive.set_action(action)
+        if self._push_steps:
+            d.xfrc_applied[self._torso_id, :3] = self._push_force_n if self._steps + 1 in self._push_steps else 0.0
         drive.advance(m, d, self._qpos_idx, self._qvel_idx, dt, self.n_muscle_steps, nstep)  # apply, mj_step, ...
         self._steps += 1
         previous, self._prev_action = self._prev_action, action
@@ -277,9 +299,12 @@ class PamWalkerEnv(gym.Env):
     def _observation(self, foot_force_n: np.ndarray, state: _State | None = None) -> np.ndarray:
         q, v, (_, y, z, roll, pitch, yaw, *velocity) = self._state() if state is None else state
         right, left = foot_force_n.tolist()
+        sensed = [y, z, roll, pitch, yaw, *velocity, *self._joint_angles(q), *self._joint_velocities(v),
+                  right / self.weight_n, left / self.weight_n]
+        if self.env_cfg.observation_noise_std > 0:
+            sensed = (np.asarray(sensed) + self.np_random.normal(0.0, self.env_cfg.observation_noise_std, OBS_BASE)).tolist()
         # float64 values rounded once to float32, as np.concatenate(...).astype(np.float32) would
-        return np.array([y, z, roll, pitch, yaw, *velocity, *self._joint_angles(q), *self._joint_velocities(v),
-                         right / self.weight_n, left / self.weight_n, *self._prev_action.tolist()], dtype=np.float32)
+        return np.array([*sensed, *self._prev_action.tolist()], dtype=np.float32)
 
     def _reward(self, action: np.ndarray, physics_error: bool, state: _State | None = None,
                 previous: np.ndarray | None = None, fell: bool = False) -> tuple[float, dict[str, float]]:
@@ -320,6 +345,8 @@ class PamWalkerEnv(gym.Env):
             "pressure_kpa": self.drive.pressure_kpa.copy(),
             "contraction_pct": self.drive.contraction_pct.copy(),
             "foot_force_n": foot_force_n,
+            "sole_xyz_m": self.data.geom_xpos[self._sole_ids].reshape(2, 4, 3),  # fancy indexing: a copy
+            "joint_torque_nm": self.data.qfrc_actuator[self._qvel_idx],
             "fell": bool(fell),
             "physics_error": np.bool_(physics_error),  # numpy: TorchRL's info reader needs a dtype
         }

@@ -1,26 +1,42 @@
 """``pamrun eval``: test saved agents in parallel, rank them and pick the best (thesis §10.3).
 
 After training, the thesis tested every saved agent and showed the paths and muscle
-pressures of the best. Here each agent runs ``eval.episodes`` episodes with its
+pressures of the best. Here each agent runs ``eval.episodes`` (50) episodes with its
 deterministic policy, episode k from seed ``eval.seed + k`` for every agent, spread over
 ``eval.workers`` processes; the results do not depend on the number of workers. Per
 episode: return, forward distance, duration before a fall, fell, max |y|, mean forward
-speed and the mean absolute change of the 20 commanded pressures per control step (the
-thesis found its gait pulsing). An episode passes the **walk test** when it lasts
-``eval.walk_duration_s`` without a fall, never leaves |y| <= ``eval.walk_lateral_m`` and ends
-``eval.walk_distance_m`` forward; an agent passes when all its episodes do.
+speed, the mean absolute change of the 20 commanded pressures per control step (the
+thesis found its gait pulsing) and the gait and air metrics of :mod:`pamrun.gait`. An
+episode passes the **walk test** when it lasts ``eval.walk_duration_s`` without a fall,
+never leaves |y| <= ``eval.walk_lateral_m`` and ends ``eval.walk_distance_m`` forward; an
+agent's pass rate comes with its episode count and 95 % Wilson interval.
+
+**Held-out seeds.** Evaluation during training selects ``best_eval.pt`` on the selection
+block (seeds ``eval.selection_seed + k``); ``pamrun eval`` reports on ``eval.seed + k``
+(from 1000), and ``leaderboard.json`` says whether the two blocks are disjoint
+(``held_out``); when they are not, the console says so in red.
 
 The evaluation directory holds ``episodes.jsonl`` (metrics and per-step x, y, z, joint
-angles, pressures and actions of every episode), ``leaderboard.csv``/``.json`` (ranked by
-``eval.rank_by``), ``best.pt`` with ``selection.json`` saying why, and the figures drawn
-from those files by :mod:`pamrun.plots`; ``eval.render=true`` adds ``best_episode.mp4`` and ``best_episode_frames.png``.
+angles, velocities and torques, pressures, contractions, foot forces and positions and
+actions of every episode), ``leaderboard.csv``/``.json`` (ranked by ``eval.rank_by``),
+``best.pt`` with ``selection.json`` saying why, and the figures drawn from those files by
+:mod:`pamrun.plots` (``gait.png`` of the best agent among them); ``eval.render=true`` adds
+``best_episode.mp4`` and ``best_episode_frames.png``.
+
+**Suites.** ``eval.suite=robustness`` runs every agent under each perturbation of
+``eval.suites.robustness`` (each a :class:`pamrun.config.Perturbation` of its own robot and
+task, applied through the env's options) and writes ``robustness.csv``/``.json`` (agent x
+perturbation: walk pass rate with its interval, stand rate, distance, ...),
+``robustness_episodes.jsonl`` and ``robustness.png``.
 """
 
 from __future__ import annotations
 
 import contextlib
+import copy
 import csv
 import json
+import math
 import multiprocessing
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -35,13 +51,26 @@ from pamrun.checkpoints import (ENV_SECTIONS, Agent, CheckpointError, check_fits
 
 from pamrun.config import RANK_METRICS  # aggregates an agent can be ranked by (``eval.rank_by``)
 
-LEADERBOARD_FIELDS = ("rank", "agent", "walk_test", "walk_pass_rate", "stand_rate", "distance_mean", "distance_std", "distance_min",
+from pamrun.gait import GAIT_METRICS, GaitSpec, episode_metrics
+
+LEADERBOARD_FIELDS = ("rank", "agent", "episodes", "walk_test", "walk_passes", "walk_pass_rate", "walk_pass_ci_low",
+                      "walk_pass_ci_high", "stand_rate", "distance_mean", "distance_std", "distance_min",
                       "return_mean", "return_std", "duration_mean", "duration_std", "fall_rate", "physics_error_rate",
                       "max_abs_y_mean", "max_abs_y_max", "speed_mean", "speed_std", "pressure_change_mean", "pressure_change_std",
+                      *(f"{m}_{s}" for m in GAIT_METRICS for s in ("mean", "std")),
                       "train_episode", "train_reward", "path")
 
 
 # --------------------------------------------------------------------------- one episode
+
+
+def _section_types() -> dict[str, type]:
+    from pamrun.config import BodyConfig, EnvConfig, MuscleConfig, RewardConfig
+
+    return {"body": BodyConfig, "muscle": MuscleConfig, "reward": RewardConfig, "env": EnvConfig}
+
+
+SECTION_TYPES = _section_types()  # ENV_SECTIONS -> their dataclasses
 
 
 def make_policy(agent: Agent):
@@ -63,15 +92,73 @@ def make_policy(agent: Agent):
 def env_kwargs(agent: Agent, cfg) -> dict[str, dict]:
     """Keyword arguments of PamWalkerEnv for ``agent``: its own robot and task (or the command
     line's), with the evaluation's start noise and episode length. Validated here."""
-    from pamrun.config import BodyConfig, EnvConfig, MuscleConfig, RewardConfig
     from pamrun.env import as_config
 
     own = agent.config if (cfg.eval.use_agent_env and agent.config) else {}
     sections = {k: dict(own.get(k) or asdict(getattr(cfg, k))) for k in ENV_SECTIONS}
-    sections["env"].update(reset_noise_rad=cfg.eval.reset_noise_rad,
-                           reset_velocity_noise=cfg.eval.reset_velocity_noise, episode_s=cfg.eval.episode_s)
-    types = {"body": BodyConfig, "muscle": MuscleConfig, "reward": RewardConfig, "env": EnvConfig}
-    return {k: asdict(as_config(v, types[k])) for k, v in sections.items()}
+    sections["env"].update(eval_env_options(cfg.eval))
+    return {k: asdict(as_config(v, SECTION_TYPES[k])) for k, v in sections.items()}
+
+
+def eval_env_options(ecfg) -> dict:
+    """What the evaluation sets of every agent's task: its start noise and episode length."""
+    return {"reset_noise_rad": ecfg.reset_noise_rad, "reset_velocity_noise": ecfg.reset_velocity_noise,
+            "episode_s": ecfg.episode_s}
+
+
+def perturb(kwargs: dict[str, dict], perturbation, where: str) -> dict[str, dict]:
+    """``kwargs`` (an agent's env sections) under ``perturbation``: its ``scale`` factors times
+    the agent's values, then its ``values``; validated like any config. An unknown key, a
+    factor on a non-number or an impossible result raises ConfigError naming
+    ``<where>.scale|values.<section>.<key>``."""
+    from pamrun.config import ConfigError, flatten
+    from pamrun.env import as_config
+
+    out = copy.deepcopy(kwargs)
+    changed = {}
+    for kind in ("scale", "values"):
+        for dotted, value in flatten(getattr(perturbation, kind)).items():
+            key = f"{where}.{kind}.{dotted}"
+            section, *path = dotted.split(".")
+            node = out[section]
+            for name in path[:-1]:
+                if not isinstance(node.get(name), dict):
+                    raise ConfigError(key, f"unknown key: {section} has no section {name!r}")
+                node = node[name]
+            if path[-1] not in node:
+                raise ConfigError(key, f"unknown key; known: {', '.join(sorted(node))}")
+            if kind == "scale":
+                old = node[path[-1]]
+                numbers = old if isinstance(old, list) else [old]
+                if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in numbers):
+                    raise ConfigError(key, f"cannot scale {old!r}, which is not a number")
+                value = [v * value for v in numbers] if isinstance(old, list) else type(old)(old * value)
+            node[path[-1]] = value
+            changed[dotted] = key
+    for section, values in out.items():
+        try:
+            out[section] = asdict(as_config(values, SECTION_TYPES[section]))
+        except ConfigError as err:
+            name = f"{section}.{err.key}"
+            raise ConfigError(changed.get(name, f"{where} ({name})"), err.message) from None
+        except Exception as err:  # OmegaConf: a value of the wrong type
+            raise ConfigError(where, str(err).splitlines()[0]) from None
+    return out
+
+
+# What run_episode records per control step (pamrun.gait reads them): torso position, joint
+# angles, velocities and muscle torques (10), pressures and contractions of the 20 muscles, the
+# feet's normal forces (2) and contact spheres' positions (2, 4, 3), and the action.
+STEP_KEYS = ("x_m", "y_m", "z_m", "joint_angle_rad", "joint_velocity_rad_s", "joint_torque_nm", "pressure_kpa",
+             "contraction_pct", "foot_force_n", "sole_xyz_m", "action")
+
+
+def gait_spec(kwargs: dict) -> GaitSpec:
+    """The gait metrics' view of the robot that ``kwargs`` (PamWalkerEnv's) builds."""
+    from pamrun.env import PamWalkerEnv
+
+    env = PamWalkerEnv(**kwargs)
+    return GaitSpec.from_configs(env.body_cfg, env.muscle_cfg, env.mass_kg, env.env_cfg.control_dt_s)
 
 
 def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = None) -> dict[str, Any]:
@@ -79,8 +166,8 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
     obs, info = env.reset(seed=seed)
     regulator, drive = env.drive.pairs.regulator, env.drive
     command = regulator.target_pressure_kpa(drive.voltage_v)
-    steps = {k: [] for k in ("x_m", "y_m", "z_m", "joint_angle_rad", "pressure_kpa", "action")}
-    angles = env.observation_structure["joint_angle"]
+    steps = {k: [] for k in STEP_KEYS}
+    qpos, qvel = env._qpos_idx, env._qvel_idx
     total, change, max_y, fell, physics_error = 0.0, 0.0, 0.0, False, False
     if frame_sink:
         frame_sink(env.render())
@@ -94,8 +181,10 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
         max_y = max(max_y, abs(float(info["y"])))
         physics_error |= bool(info["physics_error"])
         for key, value in (("x_m", info["x"]), ("y_m", info["y"]), ("z_m", info["z"]),
-                           ("joint_angle_rad", obs[angles]), ("pressure_kpa", info["pressure_kpa"].ravel()),
-                           ("action", action)):
+                           ("joint_angle_rad", env.data.qpos[qpos]), ("joint_velocity_rad_s", env.data.qvel[qvel]),
+                           ("joint_torque_nm", info["joint_torque_nm"]), ("pressure_kpa", info["pressure_kpa"].ravel()),
+                           ("contraction_pct", info["contraction_pct"].ravel()), ("foot_force_n", info["foot_force_n"]),
+                           ("sole_xyz_m", info["sole_xyz_m"]), ("action", action)):
             steps[key].append(value)
         if frame_sink:
             frame_sink(env.render())
@@ -105,6 +194,10 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
     n = len(steps["x_m"])
     duration = n * env.env_cfg.control_dt_s
     distance = float(info["distance"])
+    arrays = {"t_s": np.arange(1, n + 1) * env.env_cfg.control_dt_s,
+              **{k: np.asarray(v, dtype=float) for k, v in steps.items()}}
+    gait = episode_metrics(arrays, GaitSpec.from_configs(env.body_cfg, env.muscle_cfg, env.mass_kg,
+                                                         env.env_cfg.control_dt_s))
     return {
         "seed": seed,
         "return": float(total),
@@ -115,8 +208,9 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
         "max_abs_y_m": max_y,
         "speed_m_s": distance / duration,
         "pressure_change_kpa": change / n,
-        "steps": {"t_s": (np.arange(1, n + 1) * env.env_cfg.control_dt_s).tolist(),
-                  **{k: np.asarray(v, dtype=float).tolist() for k, v in steps.items()}},
+        **gait,
+        # rounded for the file (1e-6 of each unit); the metrics above use the full values
+        "steps": {k: np.round(v, 6).tolist() for k, v in arrays.items()},
     }
 
 
@@ -202,7 +296,8 @@ class TrainingEvaluator:
     """The walk test of ``pamrun eval`` run on the current actor during training.
 
     Every call runs ``cfg.train.eval_episodes`` deterministic episodes in one env of the
-    run's robot and task, episode k from seed ``eval.seed + k`` with ``eval.reset_noise_rad``
+    run's robot and task, episode k from seed ``eval.selection_seed + k`` (the selection
+    block, disjoint from ``pamrun eval``'s held-out ``eval.seed``) with ``eval.reset_noise_rad``
     start noise (the same starts every time, as ``pamrun eval``), in this process with one
     torch thread, and returns the aggregate (:func:`aggregate`) with its cost ``eval_s``.
     Anchors: Stable-Baselines3's ``EvalCallback``, TorchRL's ``Evaluator``.
@@ -226,8 +321,9 @@ class TrainingEvaluator:
             return actor(torch.as_tensor(obs, dtype=torch.float32).unsqueeze(0))[0].numpy()
 
         with torch.no_grad(), _torch_threads(1):
-            episodes = [run_episode(policy, self.env, self.ecfg.seed + k) for k in range(self.episodes)]
-        return {**aggregate(episodes, self.ecfg), "eval_s": time.perf_counter() - start}
+            episodes = [run_episode(policy, self.env, self.ecfg.selection_seed + k) for k in range(self.episodes)]
+        seeds = [self.ecfg.selection_seed, self.ecfg.selection_seed + self.episodes - 1]
+        return {**aggregate(episodes, self.ecfg), "seeds": seeds, "eval_s": time.perf_counter() - start}
 
     def better(self, new: dict, best: dict | None) -> bool:
         """Whether ``new`` ranks before ``best`` by ``eval.rank_by`` (ties keep the old one)."""
@@ -262,12 +358,33 @@ AGGREGATED = {"return": "return", "distance_m": "distance", "duration_s": "durat
               "max_abs_y_m": "max_abs_y", "pressure_change_kpa": "pressure_change"}
 
 
+def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+    """The 95 % Wilson score interval of a proportion (E. B. Wilson, JASA 22, 1927): unlike
+    p +- z sqrt(p(1-p)/n) it stays inside [0, 1] and is not empty at 0 or n successes
+    (10 of 10 gives [0.72, 1], 41 of 50 gives [0.69, 0.90])."""
+    if n <= 0:
+        return float("nan"), float("nan")
+    p, z2 = successes / n, z * z
+    centre = (p + z2 / (2 * n)) / (1 + z2 / n)
+    half = z / (1 + z2 / n) * math.sqrt(p * (1 - p) / n + z2 / (4 * n * n))
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def pass_text(row: dict) -> str:
+    """'41/50 (69-90 %)': passes of episodes with the 95 % Wilson interval."""
+    return (f"{row['walk_passes']}/{row['episodes']} ({100 * row['walk_pass_ci_low']:.0f}-"
+            f"{100 * row['walk_pass_ci_high']:.0f} %)")
+
+
 def aggregate(episodes: list[dict], ecfg) -> dict[str, Any]:
     """Mean and spread (population std) of an agent's episodes, its extremes, its walk test
-    and its stand rate (the share of episodes that last the test's duration)."""
+    (pass count, rate and 95 % Wilson interval; ``walk_test``: every episode passed), its
+    stand rate (the share of episodes that last the test's duration) and the gait metrics'
+    means and spreads over the episodes where they are defined (NaN where none is)."""
     passed = [walk_passed(e, ecfg) for e in episodes]
-    out: dict[str, Any] = {"episodes": len(episodes), "walk_test": all(passed),
-                           "walk_pass_rate": float(np.mean(passed)),
+    low, high = wilson_interval(sum(passed), len(passed))
+    out: dict[str, Any] = {"episodes": len(episodes), "walk_test": all(passed), "walk_passes": int(sum(passed)),
+                           "walk_pass_rate": float(np.mean(passed)), "walk_pass_ci_low": low, "walk_pass_ci_high": high,
                            "stand_rate": float(np.mean([stood(e, ecfg) for e in episodes])),
                            "fall_rate": float(np.mean([e["fell"] for e in episodes])),
                            "physics_error_rate": float(np.mean([e.get("physics_error", False) for e in episodes]))}
@@ -278,6 +395,11 @@ def aggregate(episodes: list[dict], ecfg) -> dict[str, Any]:
             out["distance_min"] = float(values.min())
         if name == "max_abs_y":
             out["max_abs_y_max"] = float(values.max())
+    for name in GAIT_METRICS:
+        values = np.array([e.get(name, np.nan) for e in episodes], dtype=float)
+        values = values[np.isfinite(values)]
+        out[f"{name}_mean"] = float(values.mean()) if len(values) else float("nan")
+        out[f"{name}_std"] = float(values.std()) if len(values) else float("nan")
     return out
 
 
@@ -361,8 +483,14 @@ def record_video(agent: Agent, kwargs: dict, seed: int, width: int, height: int,
 
 def check_config(config) -> None:
     """``ckpt`` must name at least one usable checkpoint (run by pamrun.cli before any directory exists)."""
-    from pamrun.config import ConfigError
+    from pamrun.config import ConfigError, to_object
 
+    if config.eval.suite:  # every perturbation of the suite applied to the command line's robot and task
+        cfg = to_object(config)
+        base = {k: asdict(getattr(cfg, k)) for k in ENV_SECTIONS}
+        base["env"].update(eval_env_options(cfg.eval))
+        for name in cfg.eval.suites[cfg.eval.suite]:
+            perturb(base, cfg.eval.perturbations[name], f"eval.perturbations.{name}")
     try:
         paths = find_checkpoints(config.ckpt, config.eval.include_last)
     except CheckpointError as err:
@@ -408,7 +536,34 @@ def evaluate(dcfg) -> None:
     from pamrun.runio import run_dir
 
     cfg = to_object(dcfg)
-    run_evaluation(cfg, cfg.ckpt, run_dir())
+    if cfg.eval.suite:
+        run_suite(cfg, cfg.ckpt, run_dir())
+    else:
+        run_evaluation(cfg, cfg.ckpt, run_dir())
+
+
+def selection_block(agent: Agent, cfg) -> range:
+    """The seeds ``agent`` was selected on: those its best_eval record names, else (an agent
+    saved before the record) ``eval.selection_seed`` onwards for its evaluation's episodes."""
+    record = agent.meta.get("eval") or {}
+    if "seeds" in record:
+        return range(int(record["seeds"][0]), int(record["seeds"][1]) + 1)
+    return range(cfg.eval.selection_seed,
+                 cfg.eval.selection_seed + int(record.get("episodes") or cfg.train.eval_episodes))
+
+
+def held_out(agents: list[Agent], cfg) -> bool:
+    """Whether the evaluation's seeds miss every agent's selection block."""
+    seeds = set(range(cfg.eval.seed, cfg.eval.seed + cfg.eval.episodes))
+    return not any(seeds & set(selection_block(a, cfg)) for a in agents)
+
+
+def warn_if_not_held_out(agents: list[Agent], cfg, console) -> bool:
+    ok = held_out(agents, cfg)
+    if not ok:
+        console.print(f"[red]Seeds {cfg.eval.seed}..{cfg.eval.seed + cfg.eval.episodes - 1} overlap the seeds an "
+                      f"agent was selected on: these numbers are biased (use eval.seed >= 1000)[/red]", soft_wrap=True)
+    return ok
 
 
 def run_evaluation(cfg, spec: str, out: Path) -> dict:
@@ -422,10 +577,12 @@ def run_evaluation(cfg, spec: str, out: Path) -> dict:
         console.print(f"[red]skipped[/red] {err['path']}: {err['error']}", soft_wrap=True)
     if not agents:
         raise SystemExit(f"pamrun: no usable checkpoint in {spec} ({len(errors)} unreadable; see above)")
+    is_held_out = warn_if_not_held_out(agents, cfg, console)
     results, workers, wall = run_all(agents, kwargs, cfg.eval, console)
-    ranked, best, selection = write_results(out, cfg, spec, agents, results, errors, workers, wall)
+    ranked, best, selection = write_results(out, cfg, spec, agents, results, errors, workers, wall, is_held_out)
     written = draw_figures(out, cfg.eval, agents, kwargs, results, best, console)
     console.print(leaderboard_table(ranked, cfg.eval))
+    console.print(gait_table(ranked))
     console.print(f"Best: [bold]{best.label}[/bold] -> {out / 'best.pt'}\n{selection['reason']}", soft_wrap=True)
     if errors:
         console.print(f"[red]{len(errors)} checkpoint(s) skipped[/red] (listed in leaderboard.json)")
@@ -433,7 +590,79 @@ def run_evaluation(cfg, spec: str, out: Path) -> dict:
     return selection
 
 
-def run_all(agents: list[Agent], kwargs: list[dict], ecfg, console) -> tuple[list[list[dict]], int, float]:
+ROBUSTNESS_FIELDS = ("agent", "perturbation", "note", "episodes", "walk_passes", "walk_pass_rate", "walk_pass_ci_low",
+                     "walk_pass_ci_high", "stand_rate", "fall_rate", "physics_error_rate", "distance_mean", "distance_std",
+                     "distance_min", "speed_mean", "max_abs_y_max", "pressure_change_mean", "stop_share_max_mean",
+                     "foot_slip_m_s_mean", "cost_of_transport_mean", "air_nl_per_m_mean")
+
+
+def run_suite(cfg, spec: str, out: Path) -> list[dict]:
+    """``pamrun eval eval.suite=NAME``: every agent under each perturbation of the suite, on the
+    same held-out seeds; writes robustness.csv/.json, robustness_episodes.jsonl and
+    robustness.png; returns the rows (agent x perturbation)."""
+    from rich.console import Console
+
+    from pamrun import plots
+    from pamrun.runio import write_json
+
+    console = Console() if Console().is_terminal else Console(width=160)
+    ecfg = cfg.eval
+    out.mkdir(parents=True, exist_ok=True)
+    agents, kwargs, errors = load_agents(spec, cfg)
+    for err in errors:
+        console.print(f"[red]skipped[/red] {err['path']}: {err['error']}", soft_wrap=True)
+    if not agents:
+        raise SystemExit(f"pamrun: no usable checkpoint in {spec} ({len(errors)} unreadable; see above)")
+    names = list(ecfg.suites[ecfg.suite])
+    runs = [(agent, name, perturb(kw, ecfg.perturbations[name], f"eval.perturbations.{name}"))
+            for agent, kw in zip(agents, kwargs) for name in names]
+    is_held_out = warn_if_not_held_out(agents, cfg, console)
+    results, workers, wall = run_all([r[0] for r in runs], [r[2] for r in runs], ecfg, console,
+                                     what=f"agent(s) x {len(names)} perturbation(s)")
+    rows = []
+    with (out / "robustness_episodes.jsonl").open("w") as fh:
+        for (agent, name, _), episodes in zip(runs, results):
+            for k, episode in enumerate(episodes):
+                record = {"agent": agent.label, "perturbation": name, "episode": k,
+                          **{key: v for key, v in episode.items() if key != "steps"},
+                          "walk_pass": walk_passed(episode, ecfg)}
+                fh.write(json.dumps(record) + "\n")
+            row = {"agent": agent.label, "perturbation": name, "note": ecfg.perturbations[name].note,
+                   **aggregate(episodes, ecfg)}
+            rows.append({key: row[key] for key in ROBUSTNESS_FIELDS})
+    with (out / "robustness.csv").open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=ROBUSTNESS_FIELDS)
+        writer.writeheader()
+        writer.writerows(rows)
+    n_episodes = len(runs) * ecfg.episodes
+    write_json(out / "robustness.json", {
+        "suite": ecfg.suite, "ckpt": spec, "episodes": ecfg.episodes, "held_out": is_held_out,
+        "seeds": [ecfg.seed, ecfg.seed + ecfg.episodes - 1], "workers": workers, "wall_time_s": round(wall, 3),
+        "seconds_per_episode": round(wall / n_episodes, 4),
+        "perturbations": {name: asdict(ecfg.perturbations[name]) for name in names},
+        "agents": [a.label for a in agents], "rows": rows, "errors": errors})
+    plots.robustness(out / "robustness.json", out / "robustness.png")
+    console.print(robustness_table(rows, ecfg))
+    console.print(f"Evaluated in {wall:.1f} s on {workers} worker(s) ({wall / n_episodes:.3f} s per episode). Wrote "
+                  f"robustness.csv, robustness.json, robustness_episodes.jsonl, robustness.png in {out}", soft_wrap=True)
+    return rows
+
+
+def robustness_table(rows: list[dict], ecfg):
+    from rich.table import Table
+
+    table = Table(title=f"Robustness ({ecfg.episodes} episodes per cell, seeds {ecfg.seed}.."
+                        f"{ecfg.seed + ecfg.episodes - 1}; walk test with its 95 % Wilson interval)")
+    for col in ("agent", "perturbation", "what", "walk test (95 % CI)", "stands", "distance (m)", "blow-ups"):
+        table.add_column(col, justify="left" if col in ("agent", "perturbation", "what") else "right", no_wrap=True)
+    for row in rows:
+        table.add_row(row["agent"], row["perturbation"], row["note"], pass_text(row), f"{row['stand_rate']:.0%}",
+                      f"{row['distance_mean']:.2f} ± {row['distance_std']:.2f}", f"{row['physics_error_rate']:.0%}")
+    return table
+
+
+def run_all(agents: list[Agent], kwargs: list[dict], ecfg, console, what: str = "agent(s)"
+            ) -> tuple[list[list[dict]], int, float]:
     """Every agent's episodes, on ``eval.workers`` processes with a progress display."""
     from pamrun.runio import Progress
     from pamrun.runtime import usable_cores
@@ -441,7 +670,7 @@ def run_all(agents: list[Agent], kwargs: list[dict], ecfg, console) -> tuple[lis
     workers = min(ecfg.workers or usable_cores(), len(agents) * ecfg.episodes)
     import pamrun.agents  # noqa: F401  (imported before the clock starts)
 
-    console.print(f"Evaluating {len(agents)} agent(s) x {ecfg.episodes} episode(s), seeds {ecfg.seed}.."
+    console.print(f"Evaluating {len(agents)} {what} x {ecfg.episodes} episode(s), seeds {ecfg.seed}.."
                   f"{ecfg.seed + ecfg.episodes - 1}, on {workers} worker(s)")
     start = time.perf_counter()
     progress = Progress(console, len(agents) * ecfg.episodes, 0, unit="episodes")
@@ -461,7 +690,7 @@ def run_all(agents: list[Agent], kwargs: list[dict], ecfg, console) -> tuple[lis
 
 
 def write_results(out: Path, cfg, spec: str, agents: list[Agent], results: list[list[dict]], errors: list[dict],
-                  workers: int, wall_s: float) -> tuple[list[dict], Agent, dict]:
+                  workers: int, wall_s: float, is_held_out: bool = True) -> tuple[list[dict], Agent, dict]:
     """episodes.jsonl, the leaderboard, best.pt and selection.json; the ranking, best agent, selection."""
     from pamrun.checkpoints import save_agent_copy
     from pamrun.runio import write_json
@@ -470,22 +699,26 @@ def write_results(out: Path, cfg, spec: str, agents: list[Agent], results: list[
     with (out / "episodes.jsonl").open("w") as fh:
         for agent, episodes in zip(agents, results):
             for k, episode in enumerate(episodes):
-                fh.write(json.dumps({"agent": agent.label, "episode": k, **episode,
-                                     "walk_pass": walk_passed(episode, ecfg)})
-                         + "\n")
+                record = {"agent": agent.label, "episode": k, **episode, "walk_pass": walk_passed(episode, ecfg)}
+                if not ecfg.save_steps:
+                    record.pop("steps")
+                fh.write(json.dumps(record) + "\n")
     rows = [{"agent": agent.label, "path": str(agent.path), "train_episode": agent.meta.get("episode"),
              "train_reward": agent.meta.get("reward"), **aggregate(episodes, ecfg)}
             for agent, episodes in zip(agents, results)]
     ranked = rank(rows, list(ecfg.rank_by))
-    write_leaderboard(out, ranked, errors, cfg, spec, workers, wall_s)
+    write_leaderboard(out, ranked, errors, cfg, spec, workers, wall_s, is_held_out)
     best_row = ranked[0]
     best = next(a for a in agents if a.label == best_row["agent"])
-    summary = {k: best_row[k] for k in ("walk_test", "walk_pass_rate", "distance_mean", "return_mean")}
+    summary = {k: best_row[k] for k in ("walk_test", "walk_pass_rate", "walk_passes", "episodes", "walk_pass_ci_low",
+                                        "walk_pass_ci_high", "distance_mean", "return_mean")}
+    summary["seeds"], summary["held_out"] = [ecfg.seed, ecfg.seed + ecfg.episodes - 1], is_held_out
     save_agent_copy(best, out / "best.pt", source=str(best.path), evaluation=summary)
     selection = {"best": best.label, "source": str(best.path), "file": "best.pt", "rank_by": list(ecfg.rank_by),
                  "reason": selection_reason(ranked, list(ecfg.rank_by)), "walk_test": best_row["walk_test"],
                  "metrics": {k: best_row[k] for k in LEADERBOARD_FIELDS if k not in ("rank", "agent", "path")},
                  "runner_up": ranked[1]["agent"] if len(ranked) > 1 else None, "agents": len(ranked),
+                 "held_out": is_held_out,
                  "skipped": errors}
     write_json(out / "selection.json", selection)
     return ranked, best, selection
@@ -501,6 +734,11 @@ def draw_figures(out: Path, ecfg, agents: list[Agent], kwargs: list[dict], resul
                        top_k=ecfg.top_k, lateral_m=ecfg.walk_lateral_m)
     plots.pressures(out / "episodes.jsonl", best.label, 0, out / "pressures.png")
     written += ["trajectories.png", "pressures.png"]
+    if ecfg.save_steps:
+        spec = gait_spec(kwargs[agents.index(best)])
+        plots.gait(plots.read_episodes(out / "episodes.jsonl", {best.label}), spec.joint_limits_rad,
+                   spec.contact_threshold_n, out / "gait.png")
+        written.append("gait.png")
     runs = list(dict.fromkeys(a.run_dir for a in agents if a.run_dir and (a.run_dir / "episodes.csv").exists()))
     for run in runs:
         name = "training.png" if len(runs) == 1 else f"training_{run.name}.png"
@@ -518,14 +756,14 @@ def draw_figures(out: Path, ecfg, agents: list[Agent], kwargs: list[dict], resul
 
 
 def write_leaderboard(out: Path, ranked: list[dict], errors: list[dict], cfg, spec: str, workers: int,
-                      wall_s: float) -> None:
+                      wall_s: float, is_held_out: bool = True) -> None:
     with (out / "leaderboard.csv").open("w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=LEADERBOARD_FIELDS, extrasaction="ignore")
         writer.writeheader()
         writer.writerows(ranked)
     ecfg = cfg.eval
     (out / "leaderboard.json").write_text(json.dumps({
-        "rank_by": list(ecfg.rank_by), "episodes": ecfg.episodes,
+        "rank_by": list(ecfg.rank_by), "episodes": ecfg.episodes, "held_out": is_held_out,
         "seeds": list(range(ecfg.seed, ecfg.seed + ecfg.episodes)), "workers": workers, "wall_time_s": round(wall_s, 3),
         "ckpt": spec, "eval": asdict(ecfg), "agents": ranked, "errors": errors}, indent=2))
 
@@ -533,16 +771,38 @@ def write_leaderboard(out: Path, ranked: list[dict], errors: list[dict], cfg, sp
 def leaderboard_table(ranked: list[dict], ecfg, limit: int = 20):
     from rich.table import Table
 
-    table = Table(title=f"Leaderboard ({ecfg.episodes} episodes each; ranked by {', '.join(ecfg.rank_by)})")
-    for col in ("#", "agent", "walk test", "distance (m)", "min (m)", "return", "time (s)", "falls", "max |y| (m)",
-                "dP (kPa/step)"):
+    table = Table(title=f"Leaderboard ({ecfg.episodes} episodes each, seeds {ecfg.seed}..{ecfg.seed + ecfg.episodes - 1}; "
+                        f"ranked by {', '.join(ecfg.rank_by)})")
+    for col in ("#", "agent", "walk test (95 % CI)", "distance (m)", "min (m)", "return", "time (s)", "falls",
+                "max |y| (m)", "dP (kPa/step)"):
         table.add_column(col, justify="left" if col == "agent" else "right", no_wrap=True)
     for row in ranked[:limit]:
-        verdict = "[green]pass[/green]" if row["walk_test"] else f"{row['walk_pass_rate']:.0%}"
+        verdict = f"[green]{pass_text(row)}[/green]" if row["walk_test"] else pass_text(row)
         table.add_row(str(row["rank"]), row["agent"], verdict,
                       f"{row['distance_mean']:.2f} ± {row['distance_std']:.2f}", f"{row['distance_min']:.2f}",
                       f"{row['return_mean']:.1f} ± {row['return_std']:.1f}", f"{row['duration_mean']:.2f}",
                       f"{row['fall_rate']:.0%}", f"{row['max_abs_y_max']:.3f}", f"{row['pressure_change_mean']:.1f}")
     if len(ranked) > limit:
         table.caption = f"{len(ranked) - limit} more in leaderboard.csv"
+    return table
+
+
+def gait_table(ranked: list[dict], limit: int = 20):
+    """The gait metrics' means (and spreads) per agent (pamrun.gait defines them)."""
+    from rich.table import Table
+
+    table = Table(title="Gait (means ± std over episodes; 'at a stop': the joint most often within 2° of a stop)")
+    for col in ("#", "agent", "speed (m/s)", "steps/s", "step (m)", "symmetry time/length", "duty", "at a stop",
+                "slip (m/s)", "CoT", "air (NL/m)"):
+        table.add_column(col, justify="left" if col == "agent" else "right", no_wrap=True)
+
+    def pm(row: dict, name: str, fmt: str = ".2f") -> str:
+        return f"{row[f'{name}_mean']:{fmt}} ± {row[f'{name}_std']:{fmt}}"
+
+    for row in ranked[:limit]:
+        table.add_row(str(row["rank"]), row["agent"], pm(row, "speed"), pm(row, "step_frequency_hz"),
+                      pm(row, "step_length_m"),
+                      f"{row['step_time_symmetry_mean']:.2f} / {row['step_length_symmetry_mean']:.2f}",
+                      f"{row['duty_factor_mean']:.2f}", f"{row['stop_share_max_mean']:.0%}", pm(row, "foot_slip_m_s"),
+                      pm(row, "cost_of_transport"), pm(row, "air_nl_per_m", ".1f"))
     return table

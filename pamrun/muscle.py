@@ -373,3 +373,81 @@ def calibrate_spring(muscle: MuscleConfig, pair: PairConfig) -> tuple[list[float
 
     fit = least_squares(residuals, start, x_scale=1.0, xtol=1e-10, ftol=1e-10)
     return [float(round(v, 3)) for v in table(fit.x)], bands
+
+
+# --------------------------------------------------------------------------- volume and air
+
+# Inner diameter D0 [m] of each size: the number in the name is the inner diameter in mm
+# (Festo, Fluidic Muscle DMSP/MAS catalogue; THESIS.md §2: the DMSP-20 has a 20 mm one).
+MUSCLE_INNER_DIAMETER_M = {"DMSP-10": 0.010, "DMSP-20": 0.020, "DMSP-40": 0.040}
+# Largest contraction: about 25 % of the nominal length (Festo DMSP catalogue; THESIS.md §8).
+MAX_CONTRACTION_PCT = 25.0
+# Braid angle at which a McKibben muscle stops contracting, arccos(1/sqrt(3)) = 54.7 deg
+# (Chou & Hannaford 1996: the pressure force vanishes there).
+NEUTRAL_BRAID_ANGLE_RAD = float(np.arccos(1.0 / np.sqrt(3.0)))
+# Normal litres (DIN 1343 normal conditions): 101.325 kPa and 0 degC.
+NORMAL_PRESSURE_KPA = 101.325
+NORMAL_TEMPERATURE_K = 273.15
+# The air in the muscles: room temperature, 20 degC (ISO 8778's standard reference atmosphere).
+AIR_TEMPERATURE_K = 293.15
+# Pressures in pamrun are gauge; absolute = gauge + the ambient, taken as the standard atmosphere.
+ATMOSPHERE_KPA = 101.325
+
+
+def muscle_volume_l(contraction_pct, nominal_length_m: float, inner_diameter_m: float) -> np.ndarray:
+    """Inner volume [litres] of one muscle at a contraction [% of nominal length], vectorised.
+
+    Chou & Hannaford's geometric model (C.-P. Chou, B. Hannaford, "Measurement and modeling
+    of McKibben pneumatic artificial muscles", IEEE Trans. Robotics and Automation 12(1),
+    1996): the muscle is a cylinder inside a braid of fibres of length b wound n turns
+    around it, at braid angle theta to the axis, so
+
+        L = b cos(theta),   D = b sin(theta) / (n pi),   V = pi D^2 L / 4 = L (b^2 - L^2) / (4 pi n^2).
+
+    b and n are fixed by two facts: the muscle contracts until the braid reaches its neutral
+    angle 54.7 deg (cos = 1/sqrt(3)) at ``MAX_CONTRACTION_PCT`` (25 %), so
+    b = sqrt(3) (1 - 0.25) L0; and at 0 % it has its nominal length L0 and inner diameter
+    D0, so n = b sin(theta0) / (pi D0) with cos(theta0) = L0 / b. Then V(0 %) = pi D0^2 L0 / 4
+    exactly, and V grows with contraction up to its maximum at 25 % (27/22 of V(0 %)).
+    Contraction past 25 % is clipped to 25 % (the braid cannot pass its neutral angle); a
+    stretched muscle (negative contraction) has a smaller volume.
+
+    The rubber wall is ignored (a thin-walled braid): its thickness fills part of the
+    cylinder, so the model slightly over-estimates the volume, and with it the air.
+    """
+    eps = np.minimum(np.asarray(contraction_pct, float), MAX_CONTRACTION_PCT) / 100.0
+    l0 = nominal_length_m
+    b = (1.0 - MAX_CONTRACTION_PCT / 100.0) * l0 / np.cos(NEUTRAL_BRAID_ANGLE_RAD)  # fibre length [m]
+    sin_theta0 = np.sqrt(1.0 - (l0 / b) ** 2)
+    turns = b * sin_theta0 / (np.pi * inner_diameter_m)
+    length = (1.0 - eps) * l0
+    return length * (b**2 - length**2) / (4.0 * np.pi * turns**2) * 1000.0  # m^3 -> litres
+
+
+def air_nl(pressure_kpa, contraction_pct, nominal_length_m: float, inner_diameter_m: float,
+           muscles_per_side=1, temperature_k: float = AIR_TEMPERATURE_K) -> float:
+    """Supply air [normal litres] the muscles draw over a series of states.
+
+    ``pressure_kpa`` (gauge) and ``contraction_pct`` are (n, 20) arrays, one row per
+    step, muscles ordered as the (10, 2) pairs raveled; ``muscles_per_side`` is the number of
+    muscles in parallel per direction of each of the 10 joints (one value, or (10,)): each
+    of them draws the same air as the muscle it doubles. Between consecutive rows a muscle
+    holding the gas amount P V (absolute pressure P = gauge + 101.325 kPa, volume V from
+    :func:`muscle_volume_l`) draws air only while P V grows (being filled, or contracting at
+    constant pressure); when it falls the muscle exhausts to the atmosphere and draws none:
+
+        air_nl = sum_steps sum_muscles count * max(0, Delta(P V)) / P_N * T_N / T
+
+    with P_N = 101.325 kPa and T_N = 273.15 K (DIN 1343 normal litres). The fill is
+    isothermal and the air an ideal gas at ``temperature_k``, by default room temperature
+    (20 degC): a muscle filled from p1 to p2 at constant volume V draws
+    V (p2 - p1) / 101.325 * 273.15 / 293.15 Nl (0.93 V (p2 - p1) / 101.325). Only changes
+    between the rows count: the fill before the first row is not included.
+    """
+    absolute = np.asarray(pressure_kpa, float) + ATMOSPHERE_KPA
+    gas = absolute * muscle_volume_l(contraction_pct, nominal_length_m, inner_diameter_m)  # kPa litres
+    count = np.asarray(muscles_per_side, float)
+    if count.ndim:
+        count = np.repeat(count, 2)  # both muscles of a joint
+    drawn = np.maximum(np.diff(gas, axis=0), 0.0) * count
+    return float(drawn.sum() / NORMAL_PRESSURE_KPA * NORMAL_TEMPERATURE_K / temperature_k)

@@ -350,3 +350,111 @@ def capacity(json_path: Path, png_path: Path) -> Path:
     fig.savefig(png_path, dpi=110)
     plt.close(fig)
     return Path(png_path)
+
+
+def gait(episodes: list[dict], joint_limits_rad, contact_threshold_n: float, png_path: Path,
+         footfall_s: float = 5.0) -> Path:
+    """Left and right joint angles over the gait cycle, and a footfall diagram (``gait.png``).
+
+    ``episodes``: records as read from ``episodes.jsonl`` (each with its ``steps``);
+    ``joint_limits_rad``: the (10, 2) limits in JOINTS order; ``contact_threshold_n``: a foot
+    is down above it (``GaitSpec.contact_threshold_n``). Top: one panel per leg joint, each
+    leg over its own strides (touchdown to touchdown of its foot, resampled to 0-100 % and
+    pooled over the episodes): mean line and a +-1 std band, the leg's stops dashed (the
+    right leg mirrors the roll joints' stops). Bottom: when each foot is down during the first
+    ``footfall_s`` seconds of the first episode.
+    """
+    from pamrun.body import LEG_JOINTS, SIDES
+    from pamrun.gait import contacts, gait_cycle, touchdowns
+
+    limits = np.rad2deg(np.asarray(joint_limits_rad, float).reshape(-1, 2))
+    colors = {"right": "tab:blue", "left": "tab:red"}
+    strides = {side: [] for side in SIDES}  # per side: (k, points, 5) arrays in deg
+    grid = None
+    for e in episodes:
+        s = e["steps"]
+        if not len(s["t_s"]):
+            continue
+        angle = np.rad2deg(np.asarray(s["joint_angle_rad"], float)).reshape(len(s["t_s"]), len(SIDES), -1)
+        for foot, (side, rows) in enumerate(zip(SIDES, touchdowns(contacts(s, contact_threshold_n)))):
+            grid, cycles = gait_cycle(angle[:, foot], rows)
+            strides[side].append(cycles)
+
+    fig = plt.figure(figsize=(3.2 * len(LEG_JOINTS), 6.4))
+    grid_spec = fig.add_gridspec(2, len(LEG_JOINTS), height_ratios=(2.2, 1.0))
+    for j, joint in enumerate(LEG_JOINTS):
+        ax = fig.add_subplot(grid_spec[0, j])
+        drawn = False
+        for k, side in enumerate(SIDES):
+            color = colors[side]
+            cycles = np.concatenate(strides[side]) if strides[side] else np.empty((0, 0, 0))
+            if len(cycles):
+                mean, std = cycles[:, :, j].mean(axis=0), cycles[:, :, j].std(axis=0)
+                ax.plot(grid, mean, color=color, lw=1.5, label=f"{side} ({len(cycles)} strides)")
+                ax.fill_between(grid, mean - std, mean + std, color=color, alpha=0.2)
+                drawn = True
+            for bound in limits[k * len(LEG_JOINTS) + j]:
+                ax.axhline(bound, color=color, ls="--", lw=0.9, alpha=0.7)
+        if not drawn:
+            ax.text(0.5, 0.5, "no full stride", transform=ax.transAxes, ha="center", va="center", color="0.4")
+        ax.set_xlim(0, 100)
+        ax.set_title(joint.replace("_", " "), fontsize=10)
+        ax.set_xlabel("gait cycle [%]")
+        ax.grid(alpha=0.3)
+        if j == 0:
+            ax.set_ylabel("angle [deg] (dashed: stops)")
+            if drawn:
+                ax.legend(fontsize=7)
+
+    ax = fig.add_subplot(grid_spec[1, :])
+    if episodes and len(episodes[0]["steps"]["t_s"]):
+        s = episodes[0]["steps"]
+        t = np.asarray(s["t_s"], float)
+        dt = float(np.median(np.diff(t))) if len(t) > 1 else float(t[0])
+        down = contacts(s, contact_threshold_n)
+        for foot, side in enumerate(SIDES):
+            edges = np.diff(np.concatenate(([0], down[:, foot].astype(int), [0])))
+            runs = [(t[a] - dt, (b - a) * dt) for a, b in zip(np.flatnonzero(edges > 0), np.flatnonzero(edges < 0))]
+            ax.broken_barh([r for r in runs if r[0] < footfall_s], (1 - foot - 0.35, 0.7), color=colors[side])
+        first = episodes[0]
+        label = f"episode {first.get('episode', 0)}" + (f", seed {first['seed']}" if "seed" in first else "")
+        ax.set_xlim(0, min(footfall_s, t[-1]))
+    else:
+        label = "no steps"
+    ax.set_yticks([1, 0], [f"{side} foot" for side in SIDES])
+    ax.set_ylim(-0.6, 1.6)
+    ax.set_xlabel("time [s]")
+    ax.set_title(f"Footfalls ({label}; foot down above {contact_threshold_n:.0f} N)", fontsize=10)
+    ax.grid(alpha=0.3, axis="x")
+    fig.suptitle(f"Gait: joint angles over each leg's stride (touchdown to touchdown of its foot), mean ± std "
+                 f"of {len(episodes)} episodes; dashed: the stops", fontsize=11)
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=110)
+    plt.close(fig)
+    return Path(png_path)
+
+
+def robustness(json_path: Path, png_path: Path) -> Path:
+    """Heat map of ``robustness.json``: agents (rows) x perturbations (columns), coloured by the
+    walk-test pass rate, each cell labelled with its passes of episodes and 95 % interval."""
+    data = json.loads(Path(json_path).read_text())
+    agents, names = data["agents"], list(data["perturbations"])
+    rows = {(r["agent"], r["perturbation"]): r for r in data["rows"]}
+    rate = np.array([[rows[a, n]["walk_pass_rate"] for n in names] for a in agents])
+    fig, ax = plt.subplots(figsize=(1.0 + 0.95 * len(names), 1.6 + 0.55 * len(agents)))
+    image = ax.imshow(rate, cmap="RdYlGn", vmin=0.0, vmax=1.0, aspect="auto")
+    for i, a in enumerate(agents):
+        for j, n in enumerate(names):
+            r = rows[a, n]
+            ax.text(j, i, f"{r['walk_passes']}/{r['episodes']}\n{100 * r['walk_pass_ci_low']:.0f}-"
+                          f"{100 * r['walk_pass_ci_high']:.0f} %", ha="center", va="center", fontsize=7)
+    ax.set_xticks(range(len(names)), [f"{n}\n{data['perturbations'][n]['note']}" for n in names], rotation=60,
+                  ha="right", fontsize=7)
+    ax.set_yticks(range(len(agents)), agents, fontsize=7)
+    fig.colorbar(image, ax=ax, label="walk-test pass rate", fraction=0.03)
+    ax.set_title(f"Robustness: walk-test passes of {data['episodes']} episodes per cell, seeds "
+                 f"{data['seeds'][0]}..{data['seeds'][1]} (95 % Wilson interval)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=110)
+    plt.close(fig)
+    return Path(png_path)

@@ -24,7 +24,8 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
 from pamrun.config.checks import CONF_DIR, ConfigError, _require
-from pamrun.config.experiments import (JOB_METRICS, RANK_METRICS, EvalConfig, OptunaConfig, PairConfig, StepExperiment,
+from pamrun.config.experiments import (JOB_METRICS, PERTURBABLE_SECTIONS, RANK_METRICS, EvalConfig, OptunaConfig, PairConfig,
+                                       Perturbation, StepExperiment, flatten,
                                        SweepConfig)
 from pamrun.config.learning import AlgoConfig, TrainConfig
 from pamrun.config.robot import (DYNAMICS_NAMES, FORCE_LAW_NAMES, SPRING_FILE, BodyConfig, JointAngles, JointCounts,
@@ -34,7 +35,7 @@ from pamrun.config.task import EnvConfig, RewardConfig
 __all__ = ["CONF_DIR", "SPRING_FILE", "JOB_METRICS", "RANK_METRICS", "FORCE_LAW_NAMES", "DYNAMICS_NAMES", "ConfigError",
            "Config", "RegulatorConfig", "SpringConfig", "MuscleConfig", "JointAngles", "JointCounts", "JointRadii",
            "check_muscle_stretch", "BodyConfig", "RewardConfig", "EnvConfig", "AlgoConfig", "TrainConfig", "EvalConfig",
-           "OptunaConfig", "SweepConfig", "StepExperiment", "PairConfig", "register_configs", "validate", "to_object",
+           "OptunaConfig", "Perturbation", "flatten", "PERTURBABLE_SECTIONS", "SweepConfig", "StepExperiment", "PairConfig", "register_configs", "validate", "to_object",
            "preset", "upgrade_saved_config"]
 
 

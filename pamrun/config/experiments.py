@@ -3,15 +3,88 @@ and the antagonistic-pair bench experiments (§10.1)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any
 
-from pamrun.config.checks import _non_negative, _positive, _require
+from pamrun.config.checks import ConfigError, _non_negative, _positive, _require
 
 
 # Aggregates an agent can be ranked by (``eval.rank_by``; pamrun/evaluate.py computes them);
 # larger is better unless prefixed '-'.
-RANK_METRICS = ("walk_pass_rate", "stand_rate", "distance_mean", "distance_min", "return_mean", "duration_mean", "speed_mean",
+RANK_METRICS = ("walk_pass_rate", "walk_pass_ci_low", "stand_rate", "distance_mean", "distance_min", "return_mean", "duration_mean", "speed_mean",
                 "fall_rate", "max_abs_y_mean", "max_abs_y_max", "pressure_change_mean")
+
+
+# The sections of an agent's robot and task a perturbation may change (pamrun.checkpoints.ENV_SECTIONS).
+PERTURBABLE_SECTIONS = ("body", "muscle", "reward", "env")
+
+
+@dataclass
+class Perturbation:
+    """One named change of the robot or task an agent is tested under (``pamrun eval eval.suite=...``).
+
+    Both fields mirror the config sections, e.g. ``scale: {body: {mass_kg: 1.1}}`` multiplies
+    the agent's own body mass by 1.1 and ``values: {env: {reset_noise_rad: 0.05}}`` sets a
+    value. They are applied to the agent's stored config after the evaluation's own start
+    noise and episode length, through the same options a user has (the ``body``, ``muscle``,
+    ``reward`` and ``env`` keys of PamWalker-v0), then validated like any config: an unknown
+    key or an impossible result (negative friction, a push after the episode) fails naming it.
+    """
+
+    note: str = ""  # what it stands for, in words (the robustness table shows it)
+    scale: dict[str, Any] = field(default_factory=dict)  # section -> key -> factor on the agent's value
+    values: dict[str, Any] = field(default_factory=dict)  # section -> key -> value
+
+    def __post_init__(self) -> None:
+        for kind in ("scale", "values"):
+            for section, keys in getattr(self, kind).items():
+                _require(section in PERTURBABLE_SECTIONS, f"{kind}.{section}",
+                         f"unknown section; a perturbation changes {', '.join(PERTURBABLE_SECTIONS)}")
+                _require(isinstance(keys, dict) and len(keys) > 0, f"{kind}.{section}",
+                         "must map keys of that section to values, e.g. {mass_kg: 1.1}")
+        for dotted, factor in flatten(self.scale).items():
+            _require(isinstance(factor, (int, float)) and not isinstance(factor, bool) and math.isfinite(factor)
+                     and factor >= 0, f"scale.{dotted}", f"must be a finite factor >= 0, got {factor!r}")
+
+
+def flatten(tree: dict, prefix: str = "") -> dict[str, Any]:
+    """{'env': {'push': {'a': 1}}} -> {'env.push.a': 1} (lists are values)."""
+    out: dict[str, Any] = {}
+    for key, value in tree.items():
+        if isinstance(value, dict):
+            out.update(flatten(value, f"{prefix}{key}."))
+        else:
+            out[f"{prefix}{key}"] = value
+    return out
+
+
+def _robustness_perturbations() -> dict[str, Perturbation]:
+    """The robustness suite's perturbations: what a real PAM robot differs from its model by.
+
+    Sizes chosen where the thesis is silent: +-10 % mass (cables, valves, a battery), foot
+    friction x0.7 / x1.3 (floor and sole materials), the regulator twice as slow (Festo quotes
+    its proportional regulators at 50-100 ms, pamrun.config.robot.RegulatorConfig), 10 % less
+    top pressure (a sagging supply), sensor noise, a 5x larger start noise, and a 10 N s push
+    (100 N for 0.1 s) at 5 s forward, backward and sideways."""
+    push = {"push_time_s": 5.0, "push_duration_s": 0.1}
+    return {
+        "nominal": Perturbation("the evaluation as is"),
+        "mass_heavy": Perturbation("body mass +10 %", scale={"body": {"mass_kg": 1.1}}),
+        "mass_light": Perturbation("body mass -10 %", scale={"body": {"mass_kg": 0.9}}),
+        "friction_low": Perturbation("foot friction x0.7", scale={"body": {"friction_static": 0.7}}),
+        "friction_high": Perturbation("foot friction x1.3", scale={"body": {"friction_static": 1.3}}),
+        "lag_x2": Perturbation("regulator lag x2", scale={"muscle": {"regulator": {"lag_s": 2.0}}}),
+        "top_pressure_low": Perturbation("top pressure -10 %", scale={"muscle": {"max_pressure_kpa": 0.9}}),
+        "obs_noise": Perturbation("observation noise sigma 0.02", values={"env": {"observation_noise_std": 0.02}}),
+        "start_noise": Perturbation("start noise 0.05 rad", values={"env": {"reset_noise_rad": 0.05}}),
+        "push_forward": Perturbation("push 10 N s forward at 5 s",
+                                     values={"env": {**push, "push_impulse_ns": [10.0, 0.0, 0.0]}}),
+        "push_backward": Perturbation("push 10 N s backward at 5 s",
+                                      values={"env": {**push, "push_impulse_ns": [-10.0, 0.0, 0.0]}}),
+        "push_sideways": Perturbation("push 10 N s sideways at 5 s",
+                                      values={"env": {**push, "push_impulse_ns": [0.0, 10.0, 0.0]}}),
+    }
 
 
 @dataclass
@@ -24,11 +97,21 @@ class EvalConfig:
     thesis, which tested from the nominal pose: with 0 every episode is the same). Each
     agent acts in the robot and task it was trained on (the config stored with it) unless
     ``use_agent_env`` is false; then the command line's groups apply.
+
+    **Two seed blocks.** Evaluation during training selects agents (``best_eval.pt``) on
+    seeds ``selection_seed + k``, k < ``train.eval_episodes``; ``pamrun eval`` reports on
+    the held-out block ``seed + k``, k < ``episodes``. A report on seeds that overlap the
+    selection block is marked ``held_out: false`` and warned about.
+
+    **Suites.** ``suite=robustness`` runs every agent under each perturbation named in
+    ``suites.robustness`` (defined in ``perturbations``; add your own with
+    ``+eval.perturbations.NAME.values.env.KEY=...`` and list it in the suite).
     """
 
-    episodes: int = 10  # deterministic episodes per agent
+    episodes: int = 50  # deterministic held-out episodes per agent (>= 50 wherever a claim is made)
     workers: int = 0  # evaluation processes; 0 = one per CPU core
-    seed: int = 0  # episode k starts from seed + k, the same for every agent
+    seed: int = 1000  # held-out block: episode k starts from seed + k, the same for every agent
+    selection_seed: int = 0  # evaluation during training selects agents on seeds selection_seed + k
     reset_noise_rad: float = 0.01  # uniform start-pose noise on the joint angles (0 = the thesis' nominal pose)
     reset_velocity_noise: float = 0.0  # uniform start noise on the joint velocities [rad/s]
     episode_s: float = 10.0  # Tf (§9)
@@ -47,12 +130,18 @@ class EvalConfig:
     render: bool = False  # mp4 of the best agent's first episode
     video_width: int = 640
     video_height: int = 480
+    suite: str = ""  # "" = one evaluation; a name in suites: every agent under each of its perturbations
+    suites: dict[str, list[str]] = field(default_factory=lambda: {"robustness": list(_robustness_perturbations())})
+    # name -> Perturbation (a dict here, so `+eval.perturbations.NAME={values: {...}}` can add one)
+    perturbations: dict[str, Any] = field(default_factory=lambda: {k: asdict(v) for k, v in
+                                                                   _robustness_perturbations().items()})
 
     def __post_init__(self) -> None:
         for name in ("episodes", "top_k"):
             _require(getattr(self, name) >= 1, name, f"must be >= 1, got {getattr(self, name)}")
         _require(self.workers >= 0, "workers", f"must be >= 0 (0 = one per core), got {self.workers}")
         _require(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
+        _require(self.selection_seed >= 0, "selection_seed", f"must be >= 0, got {self.selection_seed}")
         _non_negative(self, "reset_noise_rad", "reset_velocity_noise", "walk_distance_m")
         _positive(self, "episode_s", "walk_duration_s", "walk_lateral_m")
         _require(self.walk_duration_s <= self.episode_s + 1e-9, "walk_duration_s",
@@ -64,6 +153,25 @@ class EvalConfig:
         for name in ("video_width", "video_height"):
             value = getattr(self, name)
             _require(16 <= value <= 1280 and value % 2 == 0, name, f"must be even and in [16, 1280], got {value}")
+        fields = set(Perturbation.__dataclass_fields__)
+        for name, spec in list(self.perturbations.items()):
+            if isinstance(spec, Perturbation):
+                continue
+            _require(isinstance(spec, dict), f"perturbations.{name}", "must be a mapping of note, scale, values")
+            for key in spec:
+                _require(key in fields, f"perturbations.{name}.{key}", f"unknown key; a perturbation has: "
+                                                                         f"{', '.join(sorted(fields))}")
+            try:
+                self.perturbations[name] = Perturbation(**spec)
+            except ConfigError as err:
+                raise ConfigError(f"perturbations.{name}.{err.key}", err.message) from None
+        _require(not self.suite or self.suite in self.suites, "suite",
+                 f"unknown suite {self.suite!r}; known: {', '.join(self.suites) or 'none'}")
+        for suite, names in self.suites.items():
+            _require(len(names) >= 1, f"suites.{suite}", "needs at least one perturbation")
+            for name in names:
+                _require(name in self.perturbations, f"suites.{suite}",
+                         f"unknown perturbation {name!r}; known: {', '.join(self.perturbations)}")
 
 
 # Per-job results a sweep summarises and Optuna can optimise (see pamrun/sweep.py).

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from pamrun.config.checks import _non_negative, _positive, _require
 
@@ -48,10 +48,22 @@ class EnvConfig:
     max_tilt_rad: float = math.pi / 4  # |roll|, |pitch|, |yaw| limit (example's check)
     reset_noise_rad: float = 0.0  # uniform noise on joint angles at reset
     reset_velocity_noise: float = 0.0  # uniform noise on joint velocities [rad/s]
+    # Perturbations (pamrun eval's robustness suite uses them; a user can train under them too):
+    observation_noise_std: float = 0.0  # Gaussian noise on the 33 sensed observations (not the previous action), in their units
+    push_impulse_ns: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])  # impulse on the torso, world x, y, z [N s]
+    push_time_s: float = 5.0  # when the push starts [s from reset]
+    push_duration_s: float = 0.1  # how long it lasts [s], rounded to whole control steps (at least one)
 
     def __post_init__(self) -> None:
         _positive(self, "control_dt_s", "episode_s", "physics_dt_s", "max_lateral_m", "max_tilt_rad")
-        _non_negative(self, "reset_noise_rad", "reset_velocity_noise")
+        _non_negative(self, "reset_noise_rad", "reset_velocity_noise", "observation_noise_std", "push_time_s")
+        _positive(self, "push_duration_s")
+        _require(len(self.push_impulse_ns) == 3 and all(math.isfinite(v) for v in self.push_impulse_ns),
+                 "push_impulse_ns", f"must be three finite values [x, y, z] in N s, got {list(self.push_impulse_ns)}")
+        if any(self.push_impulse_ns):
+            _require(self.push_time_s + self.push_duration_s <= self.episode_s + 1e-9, "push_time_s",
+                     f"the push ({self.push_time_s} s + {self.push_duration_s} s) must end within the episode "
+                     f"({self.episode_s} s)")
         _require(0 < self.fall_height_ratio < 1, "fall_height_ratio", "must lie in (0, 1)")
         _positive(self, "muscle_dt_s")
         for key, big, small in (

@@ -1,0 +1,260 @@
+"""Gait and air metrics on constructed motion (no MuJoCo): every expected number is worked
+out by hand from the construction, not recomputed with pamrun's code."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from pamrun import plots
+from pamrun.body import JOINTS
+from pamrun.config import BodyConfig, MuscleConfig
+from pamrun.gait import GAIT_METRICS, GaitSpec, contacts, episode_metrics, gait_cycle, touchdowns
+from pamrun.muscle import air_nl, muscle_volume_l
+
+DT = 0.025
+L0, D0 = 0.26, 0.020  # a DMSP-20-260
+V0_L = math.pi * D0**2 * L0 / 4 * 1000  # cylinder of the nominal state [litres] = 0.0816814...
+LIMITS = np.tile([-0.5, 0.5], (10, 1))  # every joint: +-0.5 rad
+
+
+def spec(**kw) -> GaitSpec:
+    args = dict(dt_s=DT, joint_limits_rad=LIMITS, mass_kg=40.0, muscles_per_side=np.ones(10),
+                nominal_length_m=L0, inner_diameter_m=D0, gravity_m_s2=9.81)
+    return GaitSpec(**{**args, **kw})
+
+
+def still(n: int, **arrays) -> dict:
+    """n rows of a robot standing still on both feet, mid-range joints; ``arrays`` replace."""
+    steps = {
+        "t_s": np.arange(1, n + 1) * DT,
+        "x_m": np.zeros(n), "y_m": np.zeros(n), "z_m": np.ones(n),
+        "joint_angle_rad": np.zeros((n, 10)),
+        "joint_velocity_rad_s": np.zeros((n, 10)),
+        "joint_torque_nm": np.zeros((n, 10)),
+        "pressure_kpa": np.full((n, 20), 300.0),
+        "contraction_pct": np.full((n, 20), 9.0),
+        "foot_force_n": np.full((n, 2), 200.0),
+        "foot_xyz_m": np.zeros((n, 2, 3)),
+    }
+    steps.update(arrays)
+    return steps
+
+
+def walk(n: int, stride_rows: int, left_offset_rows: int, stance_rows: int, right_len_m: float,
+         left_len_m: float) -> dict:
+    """Right foot down for ``stance_rows`` from each row i with i % stride_rows == 0, the left
+    from each i with (i - left_offset_rows) % stride_rows == 0; a foot lands (instantly)
+    ``*_len_m`` ahead of the other and stays put while down."""
+    down = np.zeros((n, 2), bool)
+    i = np.arange(n)
+    down[:, 0] = i % stride_rows < stance_rows
+    down[:, 1] = (i - left_offset_rows) % stride_rows < stance_rows
+    feet = np.zeros((n, 2, 3))
+    x = [0.0, 0.0]
+    for row in range(n):
+        for foot, length in ((0, right_len_m), (1, left_len_m)):
+            if row > 0 and down[row, foot] and not down[row - 1, foot]:
+                x[foot] = x[1 - foot] + length
+        feet[row, :, 0] = x
+    return still(n, foot_force_n=np.where(down, 300.0, 0.0), foot_xyz_m=feet,
+                 x_m=np.arange(n) * DT * 0.8)
+
+
+# --------------------------------------------------------------------------- spec
+
+
+def test_spec_from_configs():
+    s = GaitSpec.from_configs(BodyConfig(), MuscleConfig(size="DMSP-20"), mass_kg=37.0, dt_s=DT)
+    assert s.muscles_per_side.tolist() == [1, 1, 2, 2, 1] * 2  # JointCounts defaults
+    assert s.inner_diameter_m == 0.020 and s.nominal_length_m == 0.30
+    assert s.contact_threshold_n == pytest.approx(0.05 * 37.0 * 9.81)
+    assert s.stop_margin_rad == pytest.approx(math.pi / 90)
+    right_hip_roll, left_hip_roll = s.joint_limits_rad[1], s.joint_limits_rad[6]
+    assert np.rad2deg(left_hip_roll) == pytest.approx([-22.5, 11.25])
+    assert np.rad2deg(right_hip_roll) == pytest.approx([-11.25, 22.5])  # mirrored
+    assert GaitSpec.from_configs(BodyConfig(), MuscleConfig(), 37.0, DT).inner_diameter_m == 0.040
+
+
+# --------------------------------------------------------------------------- steps
+
+
+def test_mirrored_gait_is_symmetric_with_the_constructed_frequency_and_length():
+    # stride 40 rows = 1 s, left half a stride later: a step every 0.5 s, 0.4 m long
+    m = episode_metrics(walk(200, 40, 20, 24, 0.4, 0.4), spec())
+    assert set(m) == set(GAIT_METRICS)
+    assert m["step_count"] == 9  # right lands at rows 40, 80, 120, 160; left at 20, 60, ..., 180
+    assert m["step_frequency_hz"] == pytest.approx(2.0, abs=1e-9)
+    assert m["step_length_m"] == pytest.approx(0.4, abs=1e-12)
+    assert m["step_time_symmetry"] == pytest.approx(0.0, abs=1e-9)
+    assert m["step_length_symmetry"] == pytest.approx(0.0, abs=1e-9)
+    assert m["duty_factor"] == pytest.approx(0.6, abs=1e-12)  # 24 of every 40 rows, both feet
+    assert m["foot_slip_m_s"] == 0.0  # planted while down
+
+
+def test_asymmetric_gait_gives_the_constructed_index():
+    # stride 32 rows = 0.8 s: left lands 12 rows (0.3 s) after the right, right 20 rows (0.5 s)
+    # after the left; right steps 0.5 m, left 0.3 m -> both indices |0.3 - 0.5| / 0.4 = 0.5
+    m = episode_metrics(walk(320, 32, 12, 22, 0.5, 0.3), spec())
+    assert m["step_time_symmetry"] == pytest.approx(0.5, abs=1e-9)
+    assert m["step_length_symmetry"] == pytest.approx(0.5, abs=1e-9)
+    assert m["step_length_m"] == pytest.approx((9 * 0.5 + 10 * 0.3) / 19)  # 9 right, 10 left steps
+    assert m["step_frequency_hz"] == pytest.approx(18 / ((300 - 12) * DT))  # 19 steps, rows 12..300
+    assert m["duty_factor"] == pytest.approx(22 / 32)
+
+
+def test_touchdowns_are_rising_edges_only():
+    force = np.array([[300, 0], [300, 0], [0, 300], [300, 300], [300, 0], [0, 0], [300, 300]], float)
+    down = contacts({"foot_force_n": force}, spec(contact_threshold_n=10.0))
+    right, left = touchdowns(down)
+    assert right.tolist() == [3, 6] and left.tolist() == [2, 6]  # row 0 is no touchdown
+
+
+def test_contact_threshold_defaults_to_five_percent_of_weight():
+    s = spec()
+    assert s.contact_threshold_n == pytest.approx(0.05 * 40 * 9.81)  # 19.62 N
+    down = contacts({"foot_force_n": [[19.0, 20.0]]}, s)
+    assert down.tolist() == [[False, True]]
+
+
+def test_too_few_steps_give_nan_not_an_error():
+    m = episode_metrics(still(10), spec())  # both feet down throughout: no touchdown
+    assert m["step_count"] == 0
+    for key in ("step_frequency_hz", "step_length_m", "step_time_symmetry", "step_length_symmetry",
+                "cost_of_transport", "air_nl_per_m"):
+        assert math.isnan(m[key]), key
+    assert m["duty_factor"] == 1.0 and m["air_nl"] == 0.0
+    one = walk(30, 40, 20, 10, 0.4, 0.4)  # a single touchdown, of the left foot at row 20
+    m = episode_metrics(one, spec())
+    assert m["step_count"] == 1 and m["step_length_m"] == pytest.approx(0.4)
+    assert math.isnan(m["step_frequency_hz"]) and math.isnan(m["step_time_symmetry"])
+    assert all(math.isnan(v) for v in episode_metrics(still(0), spec()).values())
+
+
+# --------------------------------------------------------------------------- stops
+
+
+def test_stop_shares():
+    n = 40
+    q = np.zeros((n, 10))
+    q[:, 2] = -0.5  # right knee held at its lower stop
+    q[:, 3] = 0.5 + 0.01  # right ankle pitch pressed 0.6 deg past its upper stop
+    q[:, 4] = 0.5 - math.radians(1.0)  # within the 2 deg margin
+    q[:, 6] = 0.5 - math.radians(3.0)  # outside it
+    q[::2, 7] = 0.5  # left knee at the stop every other row
+    m = episode_metrics(still(n, joint_angle_rad=q), spec())
+    expected = {"right_knee": 1.0, "right_ankle_pitch": 1.0, "right_ankle_roll": 1.0, "left_knee": 0.5}
+    for joint in JOINTS:
+        assert m[f"stop_share_{joint}"] == expected.get(joint, 0.0), joint
+    assert m["stop_share_max"] == 1.0
+
+
+# --------------------------------------------------------------------------- slip
+
+
+def test_foot_slip():
+    n = 20
+    t = np.arange(1, n + 1) * DT
+    sliding = np.zeros((n, 2, 3))
+    sliding[:, 0, 0] = 0.3 * t  # right foot slides at 0.3 m/s in x, left planted
+    sliding[:, 1, 0] = 0.3 * t  # ... and the left as well
+    assert episode_metrics(still(n, foot_xyz_m=sliding), spec())["foot_slip_m_s"] == pytest.approx(0.3)
+    diagonal = np.zeros((n, 2, 3))
+    diagonal[:, :, 0], diagonal[:, :, 1] = (0.3 * t)[:, None], (0.4 * t)[:, None]
+    diagonal[:, :, 2] = (5.0 * t)[:, None]  # vertical motion is no slip
+    assert episode_metrics(still(n, foot_xyz_m=diagonal), spec())["foot_slip_m_s"] == pytest.approx(0.5)
+    assert episode_metrics(still(n), spec())["foot_slip_m_s"] == 0.0  # planted
+    swinging = np.zeros((n, 2, 3))
+    swinging[:, 1, 0] = 1.0 * t  # the left foot moves, but in the air
+    force = np.tile([300.0, 0.0], (n, 1))
+    m = episode_metrics(still(n, foot_xyz_m=swinging, foot_force_n=force), spec())
+    assert m["foot_slip_m_s"] == 0.0
+
+
+# --------------------------------------------------------------------------- cost of transport
+
+
+def test_cost_of_transport():
+    n = 41
+    torque, velocity = np.zeros((n, 10)), np.zeros((n, 10))
+    torque[:, 0], velocity[:, 0] = 10.0, 2.0  # 20 W
+    torque[:, 6], velocity[:, 6] = -5.0, 2.0  # -10 W of braking counts as 10 W
+    x = 0.5 * np.arange(n) * DT  # 0.5 m/s: 0.5 m over the 40 control steps
+    m = episode_metrics(still(n, joint_torque_nm=torque, joint_velocity_rad_s=velocity, x_m=x), spec())
+    assert m["cost_of_transport"] == pytest.approx(30.0 / (40.0 * 9.81 * 0.5))  # P / (m g v) = 0.15291
+    backwards = still(n, joint_torque_nm=torque, joint_velocity_rad_s=velocity, x_m=-x)
+    assert math.isnan(episode_metrics(backwards, spec())["cost_of_transport"])
+
+
+# --------------------------------------------------------------------------- volume and air
+
+
+def test_volume_model():
+    assert muscle_volume_l(0.0, L0, D0) == pytest.approx(V0_L, rel=1e-12)
+    assert muscle_volume_l(0.0, 0.30, 0.040) == pytest.approx(math.pi * 0.04**2 * 0.30 / 4 * 1000, rel=1e-12)
+    # b = sqrt(3) 0.75 L0 -> V / V0 = (1 - e) (1.6875 - (1 - e)^2) / 0.6875; at e = 0.25: 27/22
+    assert muscle_volume_l(25.0, L0, D0) == pytest.approx(V0_L * 27 / 22, rel=1e-12)
+    assert muscle_volume_l(10.0, L0, D0) == pytest.approx(V0_L * 0.9 * (1.6875 - 0.81) / 0.6875, rel=1e-12)
+    c = np.linspace(-3.0, 25.0, 57)
+    v = muscle_volume_l(c, L0, D0)
+    assert v.shape == c.shape and np.all(np.diff(v) > 0)  # grows with contraction up to 25 %
+    assert muscle_volume_l(30.0, L0, D0) == pytest.approx(V0_L * 27 / 22)  # clipped at the stroke
+
+
+def test_air_of_a_known_fill():
+    p = np.full((2, 20), 100.0)
+    p[1, 0] = 500.0  # muscle 1 of joint 0 filled from 100 to 500 kPa at 0 % contraction
+    c = np.zeros((2, 20))
+    expected = V0_L * 400.0 / 101.325 * 273.15 / 293.15  # 0.3005 Nl: air at 20 degC, in DIN 1343 normal litres
+    assert air_nl(p, c, L0, D0) == pytest.approx(expected, rel=1e-12)
+    assert air_nl(p, c, L0, D0, temperature_k=273.15) == pytest.approx(V0_L * 400.0 / 101.325, rel=1e-12)
+    assert air_nl(p[::-1], c, L0, D0) == 0.0  # exhausting draws nothing
+    counts = np.ones(10)
+    counts[0] = 3  # three muscles in parallel on joint 0
+    assert air_nl(p, c, L0, D0, counts) == pytest.approx(3 * expected, rel=1e-12)
+    cycle = np.full((4, 20), 100.0)
+    cycle[:, 5] = [100.0, 500.0, 100.0, 500.0]  # fill, exhaust, fill: two fills
+    assert air_nl(cycle, np.zeros((4, 20)), L0, D0) == pytest.approx(2 * expected, rel=1e-12)
+    # contracting 0 -> 25 % at a constant 200 kPa gauge draws (200 + 101.325) kPa x (27/22 - 1) V0
+    c2 = np.zeros((2, 20))
+    c2[1, 3] = 25.0
+    drawn = air_nl(np.full((2, 20), 200.0), c2, L0, D0)
+    assert drawn == pytest.approx(301.325 * V0_L * 5 / 22 / 101.325 * 273.15 / 293.15, rel=1e-12)
+
+
+def test_air_in_the_episode_metrics():
+    n = 41
+    p = np.full((n, 20), 100.0)
+    p[20:, 0] = 500.0
+    x = 0.5 * np.arange(n) * DT  # 0.5 m walked
+    counts = np.full(10, 2.0)
+    m = episode_metrics(still(n, pressure_kpa=p, contraction_pct=np.zeros((n, 20)), x_m=x),
+                        spec(muscles_per_side=counts))
+    assert m["air_nl"] == pytest.approx(2 * V0_L * 400.0 / 101.325 * 273.15 / 293.15)
+    assert m["air_nl_per_m"] == pytest.approx(m["air_nl"] / 0.5)
+
+
+# --------------------------------------------------------------------------- cycle and figure
+
+
+def test_gait_cycle_resamples_each_stride():
+    values = np.concatenate([np.linspace(0, 1, 11), np.linspace(1, 3, 21)[1:]])  # rows 0..30
+    grid, strides = gait_cycle(values[:, None], [0, 10, 30], points=5)
+    assert grid.tolist() == [0, 25, 50, 75, 100]
+    assert strides.shape == (2, 5, 1)
+    assert strides[0, :, 0] == pytest.approx([0, 0.25, 0.5, 0.75, 1.0])
+    assert strides[1, :, 0] == pytest.approx([1, 1.5, 2, 2.5, 3])
+    assert gait_cycle(values[:, None], [4])[1].shape == (0, 101, 1)
+
+
+def test_gait_figure(tmp_path):
+    walking = {"agent": "a", "episode": 0, "seed": 1, "steps": walk(200, 40, 20, 24, 0.4, 0.4)}
+    fallen = {"agent": "a", "episode": 1, "seed": 2, "steps": still(10)}  # fell at 0.25 s: no touchdown
+    lifted = {"agent": "a", "episode": 2, "seed": 3, "steps": still(10, foot_force_n=np.zeros((10, 2)))}
+    listed = {"agent": "a", "episode": 3, "seed": 4,  # as read from episodes.jsonl
+              "steps": {k: np.asarray(v).tolist() for k, v in walking["steps"].items()}}
+    for name, episodes in (("walk", [walking, fallen, listed]), ("fallen", [fallen]), ("lifted", [lifted])):
+        png = plots.gait(episodes, LIMITS, 20.0, tmp_path / f"{name}.png")
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000, name
