@@ -1,6 +1,6 @@
 """Cost of ``pamrun eval eval.suite=robustness``: seconds per agent x perturbation x episode.
 
-    python benchmarks/robustness_cost.py [--ckpt agents/walk_td3_seed0.pt] [--episodes 50] [--workers 2]
+    python benchmarks/robustness_cost.py [--ckpt agents/walk_td3_seed0.pt] [--episodes 50] [--workers 2] [--out DIR]
 
 Runs the suite (every perturbation of ``eval.suites.robustness``) through
 ``pamrun.evaluate.run_suite`` and, in the same process as the baseline, the plain
@@ -36,12 +36,14 @@ def main() -> None:
     parser.add_argument("--ckpt", default=str(ROOT / "agents" / "walk_td3_seed0.pt"))
     parser.add_argument("--episodes", type=int, default=50)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--out", type=Path, help="keep both evaluations' files here (default: a temporary folder)")
     args = parser.parse_args()
     register_configs()
     overrides = [f"eval.episodes={args.episodes}", f"eval.workers={args.workers}"]
     with initialize_config_dir(str(CONF_DIR), version_base="1.3"):
         cfg = to_object(compose("config", overrides=[*overrides, "eval.suite=robustness"]))
     with tempfile.TemporaryDirectory() as tmp:
+        tmp = args.out or tmp
         start = time.perf_counter()
         run_evaluation(cfg, args.ckpt, Path(tmp) / "plain")
         plain_s = time.perf_counter() - start

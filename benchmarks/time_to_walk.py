@@ -18,6 +18,11 @@ start near 0) passes *stand* at the first evaluation. The row therefore also giv
 (``pamrun.train.stands_learned``: the milestone at which ``train.walk_kvx``'s curriculum
 starts walking; the row gives its frames as ``walk_kvx_from_frames``).
 
+The milestones and ``best_*`` come from the seeds the run selects its agents on (biased
+upward for the agent they chose). What the row claims about the agent itself comes from
+``held_out``: the run's ``best_eval.pt`` under ``pamrun eval``'s defaults, 50 episodes on
+the held-out seeds (1000-1049), with the walk-test passes and their 95 % Wilson interval.
+
 It prints one row per seed and the median over seeds (a milestone not reached counts as
 not reached, never as the budget), and appends one JSON line per seed to
 benchmarks/results/time_to_walk.jsonl.
@@ -61,7 +66,26 @@ def milestones(run: Path) -> dict:
         out[f"best_{key}"] = max((float(r[key]) for r in rows), default=None)
     learned = [r for r in rows if int(r["frames"]) > learning]  # the untrained actor stands
     out["best_duration_mean_learned"] = max((float(r["duration_mean"]) for r in learned), default=None)
+    out["held_out"] = held_out_evaluation(run)
     return out
+
+
+def held_out_evaluation(run: Path) -> dict | None:
+    """The run's best_eval.pt on pamrun eval's held-out seeds (its defaults), or None."""
+    from pamrun.config import Config
+    from pamrun.evaluate import aggregate, evaluate_agents, held_out, load_agents
+    from pamrun.runtime import usable_cores
+
+    best = run / "checkpoints" / "best_eval.pt"
+    if not best.exists():
+        return None
+    cfg = Config()
+    agents, kwargs, _ = load_agents(str(best), cfg)
+    episodes = evaluate_agents(agents, kwargs, cfg.eval.episodes, cfg.eval.seed, usable_cores())[0]
+    agg = aggregate(episodes, cfg.eval)
+    return {"seeds": [cfg.eval.seed, cfg.eval.seed + cfg.eval.episodes - 1], "held_out": held_out(agents, cfg),
+            **{k: agg[k] for k in ("episodes", "walk_passes", "walk_pass_rate", "walk_pass_ci_low",
+                                   "walk_pass_ci_high", "stand_rate", "distance_mean", "distance_std")}}
 
 
 def train(preset: str, seed: int, minutes: float, extra: list[str], root: Path) -> Path:
@@ -98,14 +122,15 @@ def main() -> None:
     results = [milestones(r) for r in runs]
     stamp = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "device": args.device, "cpu_count": os.cpu_count(),
              "note": args.note}
-    print(f"{'run':<16} {'stand':>28} {'stand, learned':>28} {'walk':>28} {'best distance':>14} "
-          f"{'longest':>8} {'frames':>8}")
+    print(f"{'run':<16} {'stand':>28} {'stand, learned':>28} {'walk':>28} {'best_eval.pt, held out':>36} "
+          f"{'frames':>8}")
     for r in results:
-        dist = "n/a" if r["best_distance_mean"] is None else f"{r['best_distance_mean']:.2f} m"
-        longest = "n/a" if r["best_duration_mean"] is None else f"{r['best_duration_mean']:.2f} s"
+        h = r["held_out"]
+        agent = "n/a" if h is None else (f"{h['walk_passes']}/{h['episodes']} ({100 * h['walk_pass_ci_low']:.0f}-"
+                                         f"{100 * h['walk_pass_ci_high']:.0f} %), {h['distance_mean']:.2f} m")
         print(f"{Path(r['run']).name:<16} {fmt(r['stand_s'], r['stand_frames']):>28} "
               f"{fmt(r['stand_learned_s'], r['stand_learned_frames']):>28} {fmt(r['walk_s'], r['walk_frames']):>28} "
-              f"{dist:>14} {longest:>8} {r['frames'] or 0:>8}")
+              f"{agent:>36} {r['frames'] or 0:>8}")
     for name in ("stand", "stand_learned", "walk"):
         reached = [r[f"{name}_s"] for r in results if r[f"{name}_s"] is not None]
         median = f"{statistics.median(reached) / 60:.1f} min" if len(reached) == len(results) else "not every seed"

@@ -486,6 +486,11 @@ def check_config(config) -> None:
     from pamrun.config import ConfigError, to_object
 
     if config.eval.suite:  # every perturbation of the suite applied to the command line's robot and task
+        from omegaconf import open_dict, read_write
+
+        config = copy.deepcopy(config)
+        with read_write(config), open_dict(config):
+            config.pop("hydra", None)  # (its interpolations resolve only inside a Hydra job)
         cfg = to_object(config)
         base = {k: asdict(getattr(cfg, k)) for k in ENV_SECTIONS}
         base["env"].update(eval_env_options(cfg.eval))

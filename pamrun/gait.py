@@ -20,8 +20,12 @@ Definitions (the manual of :func:`episode_metrics`):
   step before the other foot has touched down).
 * **step frequency**: steps per second over the span of the detected steps,
   (k - 1) / (t_last - t_first) for k touchdowns of either foot.
-* **symmetry index** of a quantity: |L - R| / ((L + R) / 2) of its mean over the left foot's
-  and the right foot's steps (0 = symmetric; left 0.3 s, right 0.5 s gives 0.5).
+* **stride length**: forward (x) distance a foot moves from one of its touchdowns to its
+  next, averaged over both feet (in a gallop the step lengths alternate in sign and their
+  mean says little; the stride length is what each foot covers per cycle).
+* **symmetry index** of a quantity: |L - R| / ((|L| + |R|) / 2) of its mean over the left
+  foot's and the right foot's steps (0 = symmetric; left 0.3 s, right 0.5 s gives 0.5; 2 when
+  the signs differ, e.g. one foot always landing behind the other).
 * **duty factor**: the share of the rows in which a foot is in contact, averaged over both
   feet (over the whole episode: standing still is 1).
 * **stop share** of a joint: the share of the rows in which its angle lies within
@@ -58,6 +62,7 @@ GAIT_METRICS = (
     "step_count",
     "step_frequency_hz",
     "step_length_m",
+    "stride_length_m",
     "step_time_symmetry",
     "step_length_symmetry",
     "duty_factor",
@@ -154,9 +159,13 @@ def step_table(steps: dict, contact: np.ndarray) -> list[tuple[int, int, float, 
 
 
 def symmetry_index(right: float, left: float) -> float:
-    """|L - R| / mean(L, R); NaN when either is undefined or the mean is 0."""
-    mean = 0.5 * (left + right)
-    return abs(left - right) / abs(mean) if np.isfinite(mean) and mean != 0 else math.nan
+    """|L - R| / mean(|L|, |R|); NaN when either is undefined or both are 0.
+
+    For positive L and R this is |L - R| / mean(L, R). The magnitudes keep it in [0, 2] when
+    the signs differ: a gallop whose left foot always lands behind the right has step
+    lengths +0.3 m and -0.26 m, an index of 2 (the most asymmetric), not 28."""
+    mean = 0.5 * (abs(left) + abs(right))
+    return abs(left - right) / mean if np.isfinite(mean) and mean != 0 else math.nan
 
 
 def _mean(values) -> float:
@@ -221,6 +230,9 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
     if table:
         out["step_length_m"] = _mean([length for _, _, length, _ in table])
     per_foot = {foot: [s for s in table if s[1] == foot] for foot in (RIGHT, LEFT)}
+    feet_x = sole_points(steps)[..., 0].mean(axis=2)
+    out["stride_length_m"] = _mean([d for foot, rows in enumerate(touchdowns(contact))
+                                    for d in np.diff(feet_x[rows, foot])])
     out["step_time_symmetry"] = symmetry_index(*(_mean([s[3] for s in per_foot[f]]) for f in (RIGHT, LEFT)))
     out["step_length_symmetry"] = symmetry_index(*(_mean([s[2] for s in per_foot[f]]) for f in (RIGHT, LEFT)))
     out["duty_factor"] = float(contact.mean())

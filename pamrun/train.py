@@ -182,7 +182,8 @@ class EvalLog:
         result = self.evaluator(actor)
         best = not result["physics_error_rate"] and self.evaluator.better(result, self.best)
         if best:
-            self.best = {k: v for k, v in result.items() if isinstance(v, (int, float, bool))}
+            # its numbers and the seeds they came from (pamrun eval reports on others: evaluate.held_out)
+            self.best = {k: v for k, v in result.items() if isinstance(v, (int, float, bool)) or k == "seeds"}
             meta = {"frames": counters["frames"], "episode": counters["episodes"], "eval": self.best}
             checkpoints.save_agent_record(self.best_path, policy_state, cfg, meta)
         row = {**result, "frames": counters["frames"], "episodes": counters["episodes"],
@@ -684,9 +685,10 @@ def best_eval_text(out: Path) -> str:
         return "none"
     meta = checkpoints.load_agent(path).meta
     e = meta.get("eval", {})
+    seeds = "..".join(map(str, e.get("seeds", []))) or "selection block"
     return (f"{path.name} at {meta.get('frames')} frames: walk test {e.get('walk_pass_rate', 0):.0%}, stand "
             f"{e.get('stand_rate', 0):.0%}, distance {e.get('distance_mean', float('nan')):.2f} m "
-            f"(evals.csv)")
+            f"on the seeds it was selected on ({seeds}; evals.csv); pamrun eval ckpt=<run> reports held-out seeds")
 
 
 def load_run_config(out: Path) -> Config:

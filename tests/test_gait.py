@@ -88,6 +88,7 @@ def test_mirrored_gait_is_symmetric_with_the_constructed_frequency_and_length():
     assert m["step_count"] == 9  # right lands at rows 40, 80, 120, 160; left at 20, 60, ..., 180
     assert m["step_frequency_hz"] == pytest.approx(2.0, abs=1e-9)
     assert m["step_length_m"] == pytest.approx(0.4, abs=1e-12)
+    assert m["stride_length_m"] == pytest.approx(0.8, abs=1e-12)  # each foot moves two steps per stride
     assert m["step_time_symmetry"] == pytest.approx(0.0, abs=1e-9)
     assert m["step_length_symmetry"] == pytest.approx(0.0, abs=1e-9)
     assert m["duty_factor"] == pytest.approx(0.6, abs=1e-12)  # 24 of every 40 rows, both feet
@@ -103,6 +104,22 @@ def test_asymmetric_gait_gives_the_constructed_index():
     assert m["step_length_m"] == pytest.approx((9 * 0.5 + 10 * 0.3) / 19)  # 9 right, 10 left steps
     assert m["step_frequency_hz"] == pytest.approx(18 / ((300 - 12) * DT))  # 19 steps, rows 12..300
     assert m["duty_factor"] == pytest.approx(22 / 32)
+
+
+def test_a_gallop_is_maximally_asymmetric_in_step_length():
+    """The left foot always lands 0.26 m behind the right, the right 0.3 m ahead of the left:
+    signed step lengths +0.3 and -0.26, symmetry index 2 (the signs differ), stride 0.04 m."""
+    n, stride = 200, 20
+    i = np.arange(n)
+    down = np.stack([i % stride < 4, (i - 5) % stride < 4], axis=1)
+    cycles = i // stride
+    right_x = 0.04 * cycles + 0.3  # the right foot lands 0.3 m ahead of the left ...
+    left_x = 0.04 * np.where(i % stride >= 5, cycles, cycles - 1) + 0.04  # ... which lands 0.26 m behind it
+    feet = np.zeros((n, 2, 3))
+    feet[:, 0, 0], feet[:, 1, 0] = right_x, left_x
+    m = episode_metrics(still(n, foot_force_n=np.where(down, 300.0, 0.0), foot_xyz_m=feet), spec())
+    assert m["step_length_symmetry"] == pytest.approx(2.0)
+    assert m["stride_length_m"] == pytest.approx(0.04)
 
 
 def test_touchdowns_are_rising_edges_only():
@@ -122,7 +139,7 @@ def test_contact_threshold_defaults_to_five_percent_of_weight():
 def test_too_few_steps_give_nan_not_an_error():
     m = episode_metrics(still(10), spec())  # both feet down throughout: no touchdown
     assert m["step_count"] == 0
-    for key in ("step_frequency_hz", "step_length_m", "step_time_symmetry", "step_length_symmetry",
+    for key in ("step_frequency_hz", "step_length_m", "stride_length_m", "step_time_symmetry", "step_length_symmetry",
                 "cost_of_transport", "air_nl_per_m"):
         assert math.isnan(m[key]), key
     assert m["duty_factor"] == 1.0 and m["air_nl"] == 0.0
@@ -258,3 +275,22 @@ def test_gait_figure(tmp_path):
     for name, episodes in (("walk", [walking, fallen, listed]), ("fallen", [fallen]), ("lifted", [lifted])):
         png = plots.gait(episodes, LIMITS, 20.0, tmp_path / f"{name}.png")
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000, name
+
+
+def test_a_foot_rolling_over_its_toe_does_not_slip_but_a_sliding_toe_does():
+    """Four sole points: the foot pitches up about its front edge (the heel rises and moves),
+    so its centre moves but the point on the ground does not; then the same roll while the
+    toe slides at 0.3 m/s."""
+    n, length = 20, 0.25
+    angle = np.linspace(0.0, 0.8, n)  # heel lifted from 0 to 0.8 rad
+    soles = np.zeros((n, 2, 4, 3))
+    for foot in (0, 1):
+        soles[:, foot, :2, 0] = length  # front points: at x = length, on the ground
+        soles[:, foot, 2:, 0] = (length - length * np.cos(angle))[:, None]  # back points swing up and forward
+        soles[:, foot, 2:, 2] = (length * np.sin(angle))[:, None]
+    steps = still(n)
+    steps.pop("foot_xyz_m")
+    assert episode_metrics({**steps, "sole_xyz_m": soles}, spec())["foot_slip_m_s"] == pytest.approx(0.0, abs=1e-12)
+    sliding = soles.copy()
+    sliding[..., 0] += (0.3 * np.arange(n) * DT)[:, None, None]
+    assert episode_metrics({**steps, "sole_xyz_m": sliding}, spec())["foot_slip_m_s"] == pytest.approx(0.3)

@@ -9,7 +9,8 @@ import json
 import pytest
 import torch
 
-from tests.conftest import run_pamrun
+from pamrun.config import to_object
+from tests.conftest import compose_config, run_pamrun
 
 TINY = ["train=smoke", "train.max_frames=600", "train.init_random_frames=200", "train.updates_per_frame=0.25",
         "train.checkpoint_every_frames=200", "seed=1"]
@@ -134,6 +135,8 @@ def test_evaluations_during_training(tmp_path):
     last_best = [r for r in rows if r["best"] == "1"][-1]
     assert best.meta["frames"] == int(last_best["frames"])
     assert best.meta["eval"]["distance_mean"] == pytest.approx(float(last_best["distance_mean"]), abs=1e-4)
+    n = to_object(compose_config("train=smoke")).train.eval_episodes
+    assert best.meta["eval"]["seeds"] == [0, n - 1]  # the selection block, so pamrun eval can tell held-out seeds
     assert run_dir / "checkpoints" / "best_eval.pt" in find_checkpoints(str(run_dir))  # pamrun eval sees it
     assert (run_dir / "evals.png").stat().st_size > 10_000
     events = EventAccumulator(str(run_dir / "tensorboard")).Reload()
@@ -152,10 +155,11 @@ def test_evaluation_is_deterministic_and_matches_pamrun_eval(tmp_path, cfg):
     actor = make_actor(cfg.algo, 43, 10).module
     evaluator = TrainingEvaluator(cfg)
     first, again = evaluator(actor), evaluator(actor)
-    assert {k: v for k, v in first.items() if k != "eval_s"} == {k: v for k, v in again.items() if k != "eval_s"}
+    assert json.dumps({k: v for k, v in first.items() if k != "eval_s"}) == json.dumps(
+        {k: v for k, v in again.items() if k != "eval_s"})  # (NaN gait metrics included)
     torch.save(agent_record(actor.state_dict(), cfg, {}), tmp_path / "a.pt")
     agent = load_agent(tmp_path / "a.pt")
-    episodes = evaluate_agents([agent], [env_kwargs(agent, cfg)], 3, cfg.eval.seed, workers=1)[0]
+    episodes = evaluate_agents([agent], [env_kwargs(agent, cfg)], 3, cfg.eval.selection_seed, workers=1)[0]
     reference = aggregate(episodes, cfg.eval)
     assert first["distance_mean"] == pytest.approx(reference["distance_mean"], abs=1e-6)
     assert first["duration_mean"] == pytest.approx(reference["duration_mean"])

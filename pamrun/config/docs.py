@@ -56,7 +56,11 @@ def describe(cls: type, prefix: str = "", instance: Any = None) -> list[tuple[st
             out += _within(describe(type(value), f"{prefix}{f.name}.", value), docs.get(f.name, ""))
         elif isinstance(value, dict) and value and all(dataclasses.is_dataclass(v) for v in value.values()):
             for name, sub in value.items():
-                out += _within(describe(type(sub), f"{prefix}{f.name}.{name}.", sub), docs.get(f.name, ""))
+                if any(isinstance(v, dict) for v in vars(sub).values()):  # one line each (e.g. perturbations)
+                    out.append((f"{prefix}{f.name}.{name}", {k: v for k, v in vars(sub).items() if v},
+                                docs.get(f.name, "")))
+                else:
+                    out += _within(describe(type(sub), f"{prefix}{f.name}.{name}.", sub), docs.get(f.name, ""))
         else:
             out.append((prefix + f.name, value, docs.get(f.name, "")))
     return out

@@ -131,10 +131,12 @@ class EvalConfig:
     video_width: int = 640
     video_height: int = 480
     suite: str = ""  # "" = one evaluation; a name in suites: every agent under each of its perturbations
-    suites: dict[str, list[str]] = field(default_factory=lambda: {"robustness": list(_robustness_perturbations())})
-    # name -> Perturbation (a dict here, so `+eval.perturbations.NAME={values: {...}}` can add one)
-    perturbations: dict[str, Any] = field(default_factory=lambda: {k: asdict(v) for k, v in
-                                                                   _robustness_perturbations().items()})
+    suites: dict[str, list[str]] = field(
+        default_factory=lambda: {"robustness": list(_robustness_perturbations())})  # suite -> its perturbations' names
+    # Typed Any, not Perturbation, so that `+eval.perturbations.NAME.values.env.KEY=...` can add one
+    # on the command line; __post_init__ makes each a Perturbation.
+    perturbations: dict[str, Any] = field(default_factory=lambda: {
+        k: asdict(v) for k, v in _robustness_perturbations().items()})  # name -> a Perturbation (note, scale, values)
 
     def __post_init__(self) -> None:
         for name in ("episodes", "top_k"):

@@ -1,0 +1,211 @@
+"""Held-out reporting, Wilson intervals, the env's perturbation options and the robustness suite."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import mujoco
+import numpy as np
+import pytest
+import torch
+
+from pamrun.checkpoints import load_agent
+from pamrun.config import ConfigError, Perturbation, to_object
+from pamrun.env import OBS_BASE, N_JOINTS, OBS_SIZE, PamWalkerEnv
+from pamrun.evaluate import (aggregate, check_config, env_kwargs, held_out, perturb, selection_block,
+                             wilson_interval)
+from tests.conftest import compose_config, run_pamrun
+
+# --------------------------------------------------------------------------- intervals
+
+
+@pytest.mark.parametrize("k, n, low, high", [
+    # Published values of the 95 % Wilson score interval (e.g. Newcombe, Stat. Med. 17, 1998, Table I:
+    # 0/10 -> 0-0.2775, 1/29 -> 0.0061-0.1718, 81/263 -> 0.2553-0.3662)
+    (0, 10, 0.0, 0.2775),
+    (1, 29, 0.0061, 0.1718),
+    (81, 263, 0.2553, 0.3662),
+    (10, 10, 0.7225, 1.0),  # the mirror of 0/10
+])
+def test_wilson_interval_matches_published_values(k, n, low, high):
+    lo, hi = wilson_interval(k, n)
+    assert lo == pytest.approx(low, abs=1e-4) and hi == pytest.approx(high, abs=1e-4)
+
+
+def test_a_pass_rate_comes_with_its_count_and_interval():
+    ep = {"duration_s": 10.0, "fell": False, "max_abs_y_m": 0.1, "distance_m": 8.0, "return": 1.0,
+          "speed_m_s": 0.8, "pressure_change_kpa": 1.0}
+    agg = aggregate([ep] * 41 + [{**ep, "distance_m": 3.0}] * 9, to_object(compose_config()).eval)
+    assert (agg["walk_passes"], agg["episodes"], agg["walk_pass_rate"]) == (41, 50, 0.82)
+    assert agg["walk_pass_ci_low"] == pytest.approx(0.6920, abs=1e-3)
+    assert agg["walk_pass_ci_high"] == pytest.approx(0.9023, abs=1e-3)
+    assert np.isnan(agg["step_frequency_hz_mean"])  # no steps recorded: undefined, not 0
+
+
+# --------------------------------------------------------------------------- held-out seeds
+
+
+def _agent(tmp_path, meta):
+    from pamrun.agents import ThesisActor
+    from pamrun.checkpoints import agent_record
+
+    path = tmp_path / "a.pt"
+    torch.save(agent_record(ThesisActor(OBS_SIZE, N_JOINTS, (400, 300), 3e-3).state_dict(),
+                            to_object(compose_config()), meta), path)
+    return load_agent(path, OBS_SIZE, N_JOINTS)
+
+
+def test_the_default_evaluation_is_held_out_from_the_selection_seeds(tmp_path):
+    cfg = to_object(compose_config())
+    assert cfg.eval.episodes >= 50 and cfg.eval.seed >= cfg.eval.selection_seed + cfg.train.eval_episodes
+    recorded = _agent(tmp_path, {"eval": {"episodes": 10, "seeds": [1040, 1049]}})
+    legacy = _agent(tmp_path, {"eval": {"episodes": 10}})  # saved before the seeds were recorded
+    assert selection_block(recorded, cfg) == range(1040, 1050)
+    assert selection_block(legacy, cfg) == range(0, 10)
+    assert held_out([legacy], cfg) is True and held_out([recorded], cfg) is False
+    assert held_out([legacy], to_object(compose_config("eval.seed=5"))) is False
+
+
+def test_training_selects_on_the_selection_block():
+    from pamrun.evaluate import TrainingEvaluator
+
+    cfg = to_object(compose_config("train.eval_episodes=2", "eval.episode_s=0.5", "eval.walk_duration_s=0.5",
+                                   "eval.selection_seed=7"))
+    evaluator = TrainingEvaluator(cfg)
+    actor = torch.nn.Sequential(torch.nn.Linear(OBS_SIZE, N_JOINTS), torch.nn.Tanh())
+    assert evaluator(actor)["seeds"] == [7, 8]
+    evaluator.close()
+
+
+# --------------------------------------------------------------------------- the env's perturbation options
+
+
+def test_a_push_gives_the_robot_its_impulse():
+    """10 N s on the torso spread over 0.1 s (four control steps): the robot's momentum gains
+    a quarter of it in each pushed step over its unpushed twin, nothing before; the ground's
+    reaction as the pushed body pitches adds a little (measured: 2.56, 5.58, 8.60, 11.50 N s)."""
+    def run(push):
+        env = PamWalkerEnv(env={"push_impulse_ns": push, "push_time_s": 0.25, "push_duration_s": 0.1})
+        env.reset(seed=0)
+        momentum = []
+        for _ in range(14):
+            env.step(np.zeros(N_JOINTS))
+            mujoco.mj_subtreeVel(env.model, env.data)
+            momentum.append(env.mass_kg * env.data.subtree_linvel[1].copy())  # body 1: the torso, root of all
+        return np.array(momentum)
+
+    quiet = run([0, 0, 0])
+    for axis, push in ((0, [10.0, 0, 0]), (1, [0, 10.0, 0]), (0, [-10.0, 0, 0])):
+        gain = (run(push) - quiet)[:, axis] * np.sign(sum(push))
+        assert np.allclose(gain[:10], 0.0)  # steps 1-10 end before 0.25 s
+        assert gain[10] == pytest.approx(2.5, abs=0.3)  # the first pushed step: 100 N for 25 ms
+        assert np.all(np.diff(gain[10:]) > 1.5) and 8.5 < gain[13] < 13.0
+
+
+def test_observation_noise_is_seeded_and_spares_the_previous_action():
+    noisy = PamWalkerEnv(env={"observation_noise_std": 0.02})
+    clean = PamWalkerEnv()
+    diffs = []
+    for seed in range(20):
+        a, b = noisy.reset(seed=seed)[0], clean.reset(seed=seed)[0]
+        diffs.append(a - b)
+    diffs = np.array(diffs)
+    assert np.std(diffs[:, :OBS_BASE]) == pytest.approx(0.02, rel=0.15)
+    assert np.all(diffs[:, OBS_BASE:] == 0)
+    assert np.array_equal(noisy.reset(seed=3)[0], noisy.reset(seed=3)[0])
+
+
+# --------------------------------------------------------------------------- perturbations
+
+
+def test_a_perturbation_reaches_the_simulated_robot(tmp_path):
+    cfg = to_object(compose_config())
+    kwargs = env_kwargs(_agent(tmp_path, {}), cfg)
+    p = cfg.eval.perturbations
+    low = perturb(kwargs, p["friction_low"], "eval.perturbations.friction_low")
+    env, base = PamWalkerEnv(**low), PamWalkerEnv(**kwargs)
+    sole = mujoco.mj_name2id(env.model, mujoco.mjtObj.mjOBJ_GEOM, "left_contact_front_left")
+    assert env.model.geom_friction[sole, 0] == pytest.approx(0.7 * base.model.geom_friction[sole, 0])
+    heavy = PamWalkerEnv(**perturb(kwargs, p["mass_heavy"], "x"))
+    assert heavy.mass_kg == pytest.approx(1.1 * base.mass_kg, rel=1e-6)
+    lag = perturb(kwargs, p["lag_x2"], "x")
+    assert lag["muscle"]["regulator"]["lag_s"] == 2 * kwargs["muscle"]["regulator"]["lag_s"]
+    assert perturb(kwargs, p["start_noise"], "x")["env"]["reset_noise_rad"] == 0.05
+    assert perturb(kwargs, p["nominal"], "x") == kwargs and kwargs["body"]["friction_static"] == 0.5  # no mutation
+
+
+@pytest.mark.parametrize("spec, key", [
+    (Perturbation(values={"body": {"friction_static": -0.1}}), "p.values.body.friction_static"),
+    (Perturbation(values={"muscle": {"regulator": {"lag_s": -0.05}}}), "p.values.muscle.regulator.lag_s"),
+    (Perturbation(values={"env": {"push_impulse_ns": [5.0, 0, 0], "push_time_s": 9.95}}), "p.values.env.push_time_s"),
+    (Perturbation(values={"env": {"push_tme_s": 1.0}}), "p.values.env.push_tme_s"),
+    (Perturbation(scale={"muscle": {"size": 2.0}}), "p.scale.muscle.size"),
+])
+def test_impossible_perturbations_name_the_key(spec, key):
+    kwargs = env_kwargs(_agent_free(), to_object(compose_config()))
+    with pytest.raises(ConfigError) as err:
+        perturb(kwargs, spec, "p")
+    assert err.value.key == key
+
+
+def _agent_free():
+    class A:  # what env_kwargs reads of an agent with no stored config
+        config = None
+    return A()
+
+
+@pytest.mark.parametrize("override, key", [
+    ("eval.suite=robustnes", "eval.suite"),
+    ("eval.suites.robustness=[nominal,gravity_x2]", "eval.suites.robustness"),
+    ("+eval.perturbations.friction_low.values.body.friction_static=-0.2",
+     "eval.perturbations.friction_low.values.body.friction_static"),
+    ("+eval.perturbations.lag_x2.values.muscle.regulator.lag_s=-1", "eval.perturbations.lag_x2.values.muscle.regulator.lag_s"),
+    ("eval.perturbations.push_forward.values.env.push_time_s=9.95", "eval.perturbations.push_forward.values.env.push_time_s"),
+])
+def test_bad_suites_fail_before_anything_is_written(tmp_path, override, key):
+    cfg = compose_config("eval.suite=robustness", override, f"ckpt={tmp_path}")
+    with pytest.raises(ConfigError) as err:
+        check_config(cfg) if "suite=" not in override and "suites." not in override else to_object(cfg)
+    assert err.value.key == key
+
+
+def test_a_bad_perturbation_on_the_command_line_writes_nothing(tmp_path):
+    out = tmp_path / "ev"
+    proc = run_pamrun("eval", f"ckpt={tmp_path}", "eval.suite=robustness",
+                      "+eval.perturbations.friction_low.values.body.friction_static=-0.2", f"hydra.run.dir={out}")
+    assert proc.returncode != 0 and not out.exists()
+    assert "eval.perturbations.friction_low.values.body.friction_static: must be >= 0" in proc.stderr
+
+
+def test_the_robustness_suite_end_to_end(tmp_path):
+    """Two agents x three perturbations (one of them the user's own) through ``pamrun eval``."""
+    folder = tmp_path / "agents"
+    folder.mkdir()
+    from pamrun.agents import ThesisActor
+    from pamrun.checkpoints import agent_record
+
+    for seed in (0, 1):
+        torch.manual_seed(seed)
+        torch.save(agent_record(ThesisActor(OBS_SIZE, N_JOINTS, (400, 300), 3e-3).state_dict(),
+                                to_object(compose_config()), {"episode": seed}), folder / f"agent_ep{seed:06d}_r0.pt")
+    out = tmp_path / "ev"
+    proc = run_pamrun("eval", f"ckpt={folder}", "eval.suite=robustness", "eval.episodes=2", "eval.episode_s=1.0",
+                      "eval.walk_duration_s=1.0", "eval.walk_distance_m=0",
+                      "+eval.perturbations.mine={note:'shove',values:{env:{push_impulse_ns:[0,30,0],push_time_s:0.2}}}",
+                      "eval.suites.robustness=[nominal,friction_low,mine]", f"hydra.run.dir={out}")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    rows = list(csv.DictReader((out / "robustness.csv").open()))
+    assert [(r["agent"][-17:], r["perturbation"]) for r in rows] == [
+        (f"agent_ep00000{a}_r0", p) for a in (0, 1) for p in ("nominal", "friction_low", "mine")]
+    data = json.loads((out / "robustness.json").read_text())
+    assert data["perturbations"]["mine"]["note"] == "shove" and data["held_out"] is True
+    assert data["seconds_per_episode"] > 0 and (out / "robustness.png").stat().st_size > 0
+    episodes = [json.loads(line) for line in (out / "robustness_episodes.jsonl").open()]
+    assert len(episodes) == 12 and "steps" not in episodes[0]
+    # The user's sideways shove moved the robot sideways; the nominal episodes did not move that way.
+    y = {(e["agent"], e["perturbation"]): e["max_abs_y_m"] for e in episodes if e["episode"] == 0}
+    assert all(y[a, "mine"] > y[a, "nominal"] + 0.01 for a, _ in y)
+    for r in rows:
+        assert float(r["walk_pass_ci_low"]) <= float(r["walk_pass_rate"]) <= float(r["walk_pass_ci_high"])
+    assert "Robustness" in proc.stdout and "shove" in proc.stdout
