@@ -571,8 +571,9 @@ def warn_if_not_held_out(agents: list[Agent], cfg, console) -> bool:
     return ok
 
 
-def run_evaluation(cfg, spec: str, out: Path) -> dict:
-    """Evaluate the agents named by ``spec`` into ``out``; the selection (selection.json's content)."""
+def start(cfg, spec: str, out: Path) -> tuple[Any, list[Agent], list[dict], list[dict]]:
+    """A console, ``out`` made, and the usable agents of ``spec`` with their env kwargs and the
+    unusable files (named on the console); exits when none is usable."""
     from rich.console import Console
 
     console = Console() if Console().is_terminal else Console(width=160)  # logs keep whole rows
@@ -582,6 +583,12 @@ def run_evaluation(cfg, spec: str, out: Path) -> dict:
         console.print(f"[red]skipped[/red] {err['path']}: {err['error']}", soft_wrap=True)
     if not agents:
         raise SystemExit(f"pamrun: no usable checkpoint in {spec} ({len(errors)} unreadable; see above)")
+    return console, agents, kwargs, errors
+
+
+def run_evaluation(cfg, spec: str, out: Path) -> dict:
+    """Evaluate the agents named by ``spec`` into ``out``; the selection (selection.json's content)."""
+    console, agents, kwargs, errors = start(cfg, spec, out)
     is_held_out = warn_if_not_held_out(agents, cfg, console)
     results, workers, wall = run_all(agents, kwargs, cfg.eval, console)
     ranked, best, selection = write_results(out, cfg, spec, agents, results, errors, workers, wall, is_held_out)
@@ -605,19 +612,11 @@ def run_suite(cfg, spec: str, out: Path) -> list[dict]:
     """``pamrun eval eval.suite=NAME``: every agent under each perturbation of the suite, on the
     same held-out seeds; writes robustness.csv/.json, robustness_episodes.jsonl and
     robustness.png; returns the rows (agent x perturbation)."""
-    from rich.console import Console
-
     from pamrun import plots
     from pamrun.runio import write_json
 
-    console = Console() if Console().is_terminal else Console(width=160)
     ecfg = cfg.eval
-    out.mkdir(parents=True, exist_ok=True)
-    agents, kwargs, errors = load_agents(spec, cfg)
-    for err in errors:
-        console.print(f"[red]skipped[/red] {err['path']}: {err['error']}", soft_wrap=True)
-    if not agents:
-        raise SystemExit(f"pamrun: no usable checkpoint in {spec} ({len(errors)} unreadable; see above)")
+    console, agents, kwargs, errors = start(cfg, spec, out)
     names = list(ecfg.suites[ecfg.suite])
     runs = [(agent, name, perturb(kw, ecfg.perturbations[name], f"eval.perturbations.{name}"))
             for agent, kw in zip(agents, kwargs) for name in names]

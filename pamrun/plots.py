@@ -441,17 +441,17 @@ def robustness(json_path: Path, png_path: Path) -> Path:
     agents, names = data["agents"], list(data["perturbations"])
     rows = {(r["agent"], r["perturbation"]): r for r in data["rows"]}
     rate = np.array([[rows[a, n]["walk_pass_rate"] for n in names] for a in agents])
-    fig, ax = plt.subplots(figsize=(1.0 + 0.95 * len(names), 1.6 + 0.55 * len(agents)))
+    fig, ax = plt.subplots(figsize=(2.5 + 0.95 * len(names), 2.6 + 0.6 * len(agents)))
     image = ax.imshow(rate, cmap="RdYlGn", vmin=0.0, vmax=1.0, aspect="auto")
     for i, a in enumerate(agents):
         for j, n in enumerate(names):
             r = rows[a, n]
             ax.text(j, i, f"{r['walk_passes']}/{r['episodes']}\n{100 * r['walk_pass_ci_low']:.0f}-"
-                          f"{100 * r['walk_pass_ci_high']:.0f} %", ha="center", va="center", fontsize=7)
-    ax.set_xticks(range(len(names)), [f"{n}\n{data['perturbations'][n]['note']}" for n in names], rotation=60,
+                          f"{100 * r['walk_pass_ci_high']:.0f} %", ha="center", va="center", fontsize=8)
+    ax.set_xticks(range(len(names)), [f"{n}\n({data['perturbations'][n]['note']})" for n in names], rotation=40,
                   ha="right", fontsize=7)
     ax.set_yticks(range(len(agents)), agents, fontsize=7)
-    fig.colorbar(image, ax=ax, label="walk-test pass rate", fraction=0.03)
+    fig.colorbar(image, ax=ax, label="walk-test pass rate", fraction=0.025, pad=0.01)
     ax.set_title(f"Robustness: walk-test passes of {data['episodes']} episodes per cell, seeds "
                  f"{data['seeds'][0]}..{data['seeds'][1]} (95 % Wilson interval)", fontsize=9)
     fig.tight_layout()
