@@ -25,7 +25,8 @@ from pamrun.agents import ThesisActor
 from pamrun.checkpoints import agent_record
 from pamrun.config import Config, register_configs, to_object
 from pamrun.env import N_JOINTS, OBS_SIZE
-from pamrun.evaluate import evaluate_agents, load_agents
+from pamrun.evaluate import load_agents
+from pamrun.rollout import evaluate_agents
 
 
 def untrained_agents(folder: Path, n: int, cfg: Config) -> str:

@@ -21,7 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from pamrun.config import Config, Perturbation
-from pamrun.evaluate import aggregate, evaluate_agents, load_agents, perturb
+from pamrun.evaluate import load_agents
+from pamrun.rollout import aggregate, evaluate_agents, perturb
 
 RESULTS = Path(__file__).parent / "results" / "shipped_agent_paths.jsonl"
 ROOT = Path(__file__).resolve().parents[1]

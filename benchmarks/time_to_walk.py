@@ -73,7 +73,8 @@ def milestones(run: Path) -> dict:
 def held_out_evaluation(run: Path) -> dict | None:
     """The run's best_eval.pt on pamrun eval's held-out seeds (its defaults), or None."""
     from pamrun.config import Config
-    from pamrun.evaluate import aggregate, evaluate_agents, held_out, load_agents
+    from pamrun.evaluate import held_out, load_agents
+    from pamrun.rollout import aggregate, evaluate_agents
     from pamrun.runtime import usable_cores
 
     best = run / "checkpoints" / "best_eval.pt"

@@ -686,7 +686,9 @@ def best_eval_text(out: Path) -> str:
     meta = checkpoints.load_agent(path).meta
     e = meta.get("eval", {})
     seeds = "..".join(map(str, e.get("seeds", []))) or "selection block"
-    return (f"{path.name} at {meta.get('frames')} frames: walk test {e.get('walk_pass_rate', 0):.0%}, stand "
+    walk = (f"{e['walk_passes']}/{e['episodes']} ({100 * e['walk_pass_ci_low']:.0f}-{100 * e['walk_pass_ci_high']:.0f} %)"
+            if "walk_pass_ci_low" in e else f"{e.get('walk_pass_rate', 0):.0%}")
+    return (f"{path.name} at {meta.get('frames')} frames: walk test {walk}, stand "
             f"{e.get('stand_rate', 0):.0%}, distance {e.get('distance_mean', float('nan')):.2f} m "
             f"on the seeds it was selected on ({seeds}; evals.csv); pamrun eval ckpt=<run> reports held-out seeds")
 

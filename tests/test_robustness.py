@@ -13,8 +13,8 @@ import torch
 from pamrun.checkpoints import load_agent
 from pamrun.config import ConfigError, Perturbation, to_object
 from pamrun.env import OBS_BASE, N_JOINTS, OBS_SIZE, PamWalkerEnv
-from pamrun.evaluate import (aggregate, check_config, env_kwargs, held_out, perturb, selection_block,
-                             wilson_interval)
+from pamrun.evaluate import check_config, held_out, selection_block
+from pamrun.rollout import aggregate, env_kwargs, perturb, wilson_interval
 from tests.conftest import compose_config, run_pamrun
 
 # --------------------------------------------------------------------------- intervals

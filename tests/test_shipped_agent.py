@@ -36,7 +36,8 @@ import numpy as np
 import pytest
 
 from pamrun.config import Perturbation, to_object
-from pamrun.evaluate import aggregate, evaluate_agents, load_agents, perturb
+from pamrun.evaluate import load_agents
+from pamrun.rollout import aggregate, evaluate_agents, perturb
 from tests.conftest import compose_config, run_pamrun
 
 AGENT = Path(__file__).parents[1] / "agents" / "walk_td3_seed0.pt"

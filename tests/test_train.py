@@ -148,7 +148,8 @@ def test_evaluation_is_deterministic_and_matches_pamrun_eval(tmp_path, cfg):
     """The evaluator's numbers for an actor are pamrun eval's for the same agent file."""
     from pamrun.agents import make_actor
     from pamrun.checkpoints import agent_record, load_agent
-    from pamrun.evaluate import TrainingEvaluator, aggregate, env_kwargs, evaluate_agents
+    from pamrun.evaluate import TrainingEvaluator
+    from pamrun.rollout import aggregate, env_kwargs, evaluate_agents
 
     torch.manual_seed(0)
     cfg.train.eval_episodes, cfg.eval.episodes, cfg.eval.episode_s, cfg.eval.walk_duration_s = 3, 3, 2.0, 2.0

@@ -1,0 +1,305 @@
+"""Episodes of saved agents: the agent's env, perturbed or not, one deterministic episode
+with its per-step data and metrics, many episodes over worker processes, and what they add
+up to (the walk and stand tests, the pass count with its 95 % Wilson interval, means and
+spreads). Below :mod:`pamrun.evaluate` (``pamrun eval``: ranking, files, figures, suites) and
+used by ``pamrun train``'s evaluations through it.
+
+An episode's **walk test** (thesis §10.3): it lasts ``eval.walk_duration_s`` without a
+fall, never leaves |y| <= ``eval.walk_lateral_m`` and ends ``eval.walk_distance_m`` forward.
+Its gait and air metrics are :mod:`pamrun.gait`'s.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import json
+import math
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict
+from typing import Any, Callable
+
+import numpy as np
+
+from pamrun.checkpoints import ENV_SECTIONS, Agent
+from pamrun.gait import GAIT_METRICS, GaitSpec, episode_metrics
+
+# --------------------------------------------------------------------------- the agent's env
+
+
+def _section_types() -> dict[str, type]:
+    from pamrun.config import BodyConfig, EnvConfig, MuscleConfig, RewardConfig
+
+    return {"body": BodyConfig, "muscle": MuscleConfig, "reward": RewardConfig, "env": EnvConfig}
+
+
+SECTION_TYPES = _section_types()  # ENV_SECTIONS -> their dataclasses
+
+
+def make_policy(agent: Agent):
+    """The agent's actor as a function observation -> action (no exploration noise)."""
+    import torch
+
+    from pamrun import agents as agents_mod
+    net = agents_mod.ThesisActor(agent.obs_size, agent.action_size, tuple(agent.hidden_sizes), init_scale=1e-3)
+    net.load_state_dict(agent.actor_state)
+    net.eval()
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            return net(torch.as_tensor(obs, dtype=torch.float32).unsqueeze(0))[0].numpy()
+
+    return policy
+
+
+def env_kwargs(agent: Agent, cfg) -> dict[str, dict]:
+    """Keyword arguments of PamWalkerEnv for ``agent``: its own robot and task (or the command
+    line's), with the evaluation's start noise and episode length. Validated here."""
+    from pamrun.env import as_config
+
+    own = agent.config if (cfg.eval.use_agent_env and agent.config) else {}
+    sections = {k: dict(own.get(k) or asdict(getattr(cfg, k))) for k in ENV_SECTIONS}
+    sections["env"].update(eval_env_options(cfg.eval))
+    return {k: asdict(as_config(v, SECTION_TYPES[k])) for k, v in sections.items()}
+
+
+def eval_env_options(ecfg) -> dict:
+    """What the evaluation sets of every agent's task: its start noise and episode length."""
+    return {"reset_noise_rad": ecfg.reset_noise_rad, "reset_velocity_noise": ecfg.reset_velocity_noise,
+            "episode_s": ecfg.episode_s}
+
+
+def perturb(kwargs: dict[str, dict], perturbation, where: str) -> dict[str, dict]:
+    """``kwargs`` (an agent's env sections) under ``perturbation``: its ``scale`` factors times
+    the agent's values, then its ``values``; validated like any config. An unknown key, a
+    factor on a non-number or an impossible result raises ConfigError naming
+    ``<where>.scale|values.<section>.<key>``."""
+    from pamrun.config import ConfigError, flatten
+    from pamrun.env import as_config
+
+    out = copy.deepcopy(kwargs)
+    changed = {}
+    for kind in ("scale", "values"):
+        for dotted, value in flatten(getattr(perturbation, kind)).items():
+            key = f"{where}.{kind}.{dotted}"
+            section, *path = dotted.split(".")
+            node = out[section]
+            for name in path[:-1]:
+                if not isinstance(node.get(name), dict):
+                    raise ConfigError(key, f"unknown key: {section} has no section {name!r}")
+                node = node[name]
+            if path[-1] not in node:
+                raise ConfigError(key, f"unknown key; known: {', '.join(sorted(node))}")
+            if kind == "scale":
+                old = node[path[-1]]
+                numbers = old if isinstance(old, list) else [old]
+                if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in numbers):
+                    raise ConfigError(key, f"cannot scale {old!r}, which is not a number")
+                value = [v * value for v in numbers] if isinstance(old, list) else type(old)(old * value)
+            node[path[-1]] = value
+            changed[dotted] = key
+    for section, values in out.items():
+        try:
+            out[section] = asdict(as_config(values, SECTION_TYPES[section]))
+        except ConfigError as err:
+            name = f"{section}.{err.key}"
+            raise ConfigError(changed.get(name, f"{where} ({name})"), err.message) from None
+        except Exception as err:  # OmegaConf: a value of the wrong type
+            raise ConfigError(where, str(err).splitlines()[0]) from None
+    return out
+
+
+# What run_episode records per control step (pamrun.gait reads them): torso position, joint
+# angles, velocities and muscle torques (10), pressures and contractions of the 20 muscles, the
+# feet's normal forces (2) and contact spheres' positions (2, 4, 3), and the action.
+STEP_KEYS = ("x_m", "y_m", "z_m", "joint_angle_rad", "joint_velocity_rad_s", "joint_torque_nm", "pressure_kpa",
+             "contraction_pct", "foot_force_n", "sole_xyz_m", "action")
+
+
+def gait_spec(kwargs: dict) -> GaitSpec:
+    """The gait metrics' view of the robot that ``kwargs`` (PamWalkerEnv's) builds."""
+    from pamrun.env import PamWalkerEnv
+
+    env = PamWalkerEnv(**kwargs)
+    return GaitSpec.from_configs(env.body_cfg, env.muscle_cfg, env.mass_kg, env.env_cfg.control_dt_s)
+
+
+def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = None) -> dict[str, Any]:
+    """One deterministic episode: metrics and per-step arrays (``frame_sink`` gets rendered frames)."""
+    obs, info = env.reset(seed=seed)
+    regulator, drive = env.drive.pairs.regulator, env.drive
+    command = regulator.target_pressure_kpa(drive.voltage_v)
+    steps = {k: [] for k in STEP_KEYS}
+    qpos, qvel = env._qpos_idx, env._qvel_idx
+    total, change, max_y, fell, physics_error = 0.0, 0.0, 0.0, False, False
+    if frame_sink:
+        frame_sink(env.render())
+    while True:
+        action = policy(obs)
+        obs, reward, terminated, truncated, info = env.step(action)
+        total += reward
+        new_command = regulator.target_pressure_kpa(drive.voltage_v)
+        change += float(np.abs(new_command - command).mean())
+        command = new_command
+        max_y = max(max_y, abs(float(info["y"])))
+        physics_error |= bool(info["physics_error"])
+        for key, value in (("x_m", info["x"]), ("y_m", info["y"]), ("z_m", info["z"]),
+                           ("joint_angle_rad", env.data.qpos[qpos]), ("joint_velocity_rad_s", env.data.qvel[qvel]),
+                           ("joint_torque_nm", info["joint_torque_nm"]), ("pressure_kpa", info["pressure_kpa"].ravel()),
+                           ("contraction_pct", info["contraction_pct"].ravel()), ("foot_force_n", info["foot_force_n"]),
+                           ("sole_xyz_m", info["sole_xyz_m"]), ("action", action)):
+            steps[key].append(value)
+        if frame_sink:
+            frame_sink(env.render())
+        if terminated or truncated:
+            fell = bool(terminated)
+            break
+    n = len(steps["x_m"])
+    duration = n * env.env_cfg.control_dt_s
+    distance = float(info["distance"])
+    arrays = {"t_s": np.arange(1, n + 1) * env.env_cfg.control_dt_s,
+              **{k: np.asarray(v, dtype=float) for k, v in steps.items()}}
+    gait = episode_metrics(arrays, GaitSpec.from_configs(env.body_cfg, env.muscle_cfg, env.mass_kg,
+                                                         env.env_cfg.control_dt_s))
+    return {
+        "seed": seed,
+        "return": float(total),
+        "distance_m": distance,
+        "duration_s": duration,
+        "fell": fell,
+        "physics_error": physics_error,
+        "max_abs_y_m": max_y,
+        "speed_m_s": distance / duration,
+        "pressure_change_kpa": change / n,
+        **gait,
+        # rounded for the file (1e-6 of each unit); the metrics above use the full values
+        "steps": {k: np.round(v, 6).tolist() for k, v in arrays.items()},
+    }
+
+
+_WORKER: dict[str, Any] = {}
+
+
+def _init_worker(agents: list[Agent], kwargs: list[dict], seed: int) -> None:
+    """Per process: one thread for torch (identical results at any worker count), policies, envs."""
+    import torch
+
+    torch.set_num_threads(1)
+    _WORKER.update(policies=[make_policy(a) for a in agents], kwargs=kwargs, seed=seed, envs={})
+
+
+def _run_task(task: tuple[int, int]) -> tuple[int, int, dict]:
+    from pamrun.env import PamWalkerEnv
+
+    i, k = task
+    key = json.dumps(_WORKER["kwargs"][i], sort_keys=True)
+    if key not in _WORKER["envs"]:
+        _WORKER["envs"][key] = PamWalkerEnv(**_WORKER["kwargs"][i])
+    return i, k, run_episode(_WORKER["policies"][i], _WORKER["envs"][key], _WORKER["seed"] + k)
+
+
+@contextlib.contextmanager
+def torch_threads(n: int):
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
+def evaluate_agents(agents: list[Agent], kwargs: list[dict], episodes: int, seed: int, workers: int,
+                    on_episode: Callable[[], None] | None = None) -> list[list[dict]]:
+    """Episode results per agent, ``[agent][episode]``, the same for any number of workers."""
+    import pamrun.agents  # noqa: F401  (torch and TorchRL imported once here, inherited by forked workers)
+
+    tasks = [(i, k) for i in range(len(agents)) for k in range(episodes)]
+    results: list[list[dict | None]] = [[None] * episodes for _ in agents]
+    if workers <= 1:
+        with torch_threads(1):
+            _init_worker(agents, kwargs, seed)
+            try:
+                for task in tasks:
+                    i, k, res = _run_task(task)
+                    results[i][k] = res
+                    if on_episode:
+                        on_episode()
+            finally:
+                for env in _WORKER["envs"].values():
+                    env.close()
+                _WORKER.clear()
+        return results
+    # fork: workers start in milliseconds and inherit the loaded agents (spawn where fork is absent).
+    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+    pool = ProcessPoolExecutor(min(workers, len(tasks)), mp_context=multiprocessing.get_context(method),
+                               initializer=_init_worker, initargs=(agents, kwargs, seed))
+    try:
+        for future in as_completed([pool.submit(_run_task, t) for t in tasks]):
+            i, k, res = future.result()
+            results[i][k] = res
+            if on_episode:
+                on_episode()
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+    return results
+
+
+def walk_passed(episode: dict, ecfg) -> bool:
+    """The walk test of one episode (thesis §10.3 and its abstract): ``ecfg.walk_duration_s``
+    without a fall, never leaving |y| <= ``ecfg.walk_lateral_m``, at least
+    ``ecfg.walk_distance_m`` forward, and no physics blow-up (whose distances mean nothing)."""
+    return (stood(episode, ecfg) and episode["max_abs_y_m"] <= ecfg.walk_lateral_m
+            and episode["distance_m"] >= ecfg.walk_distance_m)
+
+
+def stood(episode: dict, ecfg) -> bool:
+    """The episode lasted ``ecfg.walk_duration_s`` without a fall or a physics blow-up."""
+    return (not episode["fell"] and not episode.get("physics_error", False)
+            and episode["duration_s"] >= ecfg.walk_duration_s - 1e-9)
+
+
+# Per-episode metric -> name of its aggregates (<name>_mean, <name>_std).
+AGGREGATED = {"return": "return", "distance_m": "distance", "duration_s": "duration", "speed_m_s": "speed",
+              "max_abs_y_m": "max_abs_y", "pressure_change_kpa": "pressure_change"}
+
+
+def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+    """The 95 % Wilson score interval of a proportion (E. B. Wilson, JASA 22, 1927): unlike
+    p +- z sqrt(p(1-p)/n) it stays inside [0, 1] and is not empty at 0 or n successes
+    (10 of 10 gives [0.72, 1], 41 of 50 gives [0.69, 0.90])."""
+    if n <= 0:
+        return float("nan"), float("nan")
+    p, z2 = successes / n, z * z
+    centre = (p + z2 / (2 * n)) / (1 + z2 / n)
+    half = z / (1 + z2 / n) * math.sqrt(p * (1 - p) / n + z2 / (4 * n * n))
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def aggregate(episodes: list[dict], ecfg) -> dict[str, Any]:
+    """Mean and spread (population std) of an agent's episodes, its extremes, its walk test
+    (pass count, rate and 95 % Wilson interval; ``walk_test``: every episode passed), its
+    stand rate (the share of episodes that last the test's duration) and the gait metrics'
+    means and spreads over the episodes where they are defined (NaN where none is)."""
+    passed = [walk_passed(e, ecfg) for e in episodes]
+    low, high = wilson_interval(sum(passed), len(passed))
+    out: dict[str, Any] = {"episodes": len(episodes), "walk_test": all(passed), "walk_passes": int(sum(passed)),
+                           "walk_pass_rate": float(np.mean(passed)), "walk_pass_ci_low": low, "walk_pass_ci_high": high,
+                           "stand_rate": float(np.mean([stood(e, ecfg) for e in episodes])),
+                           "fall_rate": float(np.mean([e["fell"] for e in episodes])),
+                           "physics_error_rate": float(np.mean([e.get("physics_error", False) for e in episodes]))}
+    for key, name in AGGREGATED.items():
+        values = np.array([e[key] for e in episodes], dtype=float)
+        out[f"{name}_mean"], out[f"{name}_std"] = float(values.mean()), float(values.std())
+        if name == "distance":
+            out["distance_min"] = float(values.min())
+        if name == "max_abs_y":
+            out["max_abs_y_max"] = float(values.max())
+    for name in GAIT_METRICS:
+        values = np.array([e.get(name, np.nan) for e in episodes], dtype=float)
+        values = values[np.isfinite(values)]
+        out[f"{name}_mean"] = float(values.mean()) if len(values) else float("nan")
+        out[f"{name}_std"] = float(values.std()) if len(values) else float("nan")
+    return out
