@@ -36,6 +36,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "capacity": ("pamrun.lab", "capacity", "muscle torque and stiffness vs standing and walking demand, per joint"),
     "train": ("pamrun.train", "train", "train DDPG, TD3 or SAC on PamWalker-v0 with TorchRL (thesis §9)"),
     "eval": ("pamrun.evaluate", "evaluate", "test saved agents in parallel, rank them, pick the best: ckpt=<path>"),
+    "export": ("pamrun.export", "export", "write an agent's policy as ONNX or TorchScript with its metadata: ckpt=<file>"),
     "sweep": ("pamrun.sweep", "job", "trainings over a grid (-m a=1,2 b=x,y), each evaluated, summary at the end"),
     "sweep summarize": ("pamrun.sweep", "summarize_command", "summary table and curves of a sweep: dir=<sweep dir>"),
     "sweep optuna": ("pamrun.search", "optuna_search", "Optuna search, each trial averaged over seeds (sweep.optuna)"),
@@ -52,6 +53,7 @@ HELP_SECTIONS: dict[str, tuple[str, ...]] = {
     "muscle step": ("muscle", "pair"), "muscle calibrate": ("muscle", "pair"), "muscle curves": ("muscle",),
     "body": ("body",), "openloop": (*ROBOT, "env"), "capacity": ROBOT,
     "train": (*TASK, "algo", "train", "eval", "resume"), "eval": ("ckpt", "eval", *TASK),
+    "export": ("ckpt", "format"),
     "sweep": ("sweep", *TASK, "algo", "train", "eval"), "sweep optuna": ("sweep", *TASK, "algo", "train", "eval"),
     "sweep summarize": ("dir", "sweep"), "plot training": ("dir",),
 }

@@ -91,6 +91,12 @@ N_JOINTS = 10
 # Observation blocks in order, with their sizes (the table above); the previous action follows.
 _OBS_BLOCKS = (("torso_y", 1), ("torso_z", 1), ("torso_rpy", 3), ("torso_velocity", 3), ("torso_angular_velocity", 3),
                ("joint_angle", N_JOINTS), ("joint_velocity", N_JOINTS), ("foot_force", 2))
+# The unit of each block (the table above), for readers outside pamrun (pamrun export's metadata).
+OBSERVATION_UNITS = {
+    "torso_y": "m", "torso_z": "m", "torso_rpy": "rad", "torso_velocity": "m/s",
+    "torso_angular_velocity": "rad/s", "joint_angle": "rad", "joint_velocity": "rad/s",
+    "foot_force": "robot weights (N / (m g))", "previous_action": "1",
+}
 OBS_BASE = sum(n for _, n in _OBS_BLOCKS)  # 33: observations before the previous action
 OBS_SIZE = OBS_BASE + N_JOINTS  # with the antagonistic command (the default and the thesis)
 

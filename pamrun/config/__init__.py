@@ -55,13 +55,15 @@ class Config:
     train: TrainConfig = field(default_factory=TrainConfig)
     resume: str = ""  # a run directory to continue from its last checkpoint
     dir: str = ""  # a run directory, for commands that read one (pamrun plot training)
-    ckpt: str = ""  # pamrun eval: a checkpoint, a run directory, a folder of runs or a glob
+    ckpt: str = ""  # pamrun eval: a checkpoint, a run directory, a folder of runs or a glob; pamrun export: one agent file
+    format: str = "onnx"  # pamrun export: onnx or torchscript
     eval: EvalConfig = field(default_factory=EvalConfig)
     sweep: SweepConfig = field(default_factory=SweepConfig)
     pair: PairConfig = field(default_factory=PairConfig)
 
     def __post_init__(self) -> None:
         _require(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
+        _require(self.format in ("onnx", "torchscript"), "format", f"must be onnx or torchscript, got {self.format!r}")
         try:
             check_muscle_stretch(self.muscle, self.body)
         except ConfigError as err:
