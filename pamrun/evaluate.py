@@ -335,9 +335,9 @@ def warn_if_not_held_out(agents: list[Agent], cfg, console) -> bool:
 def start(cfg, spec: str, out: Path) -> tuple[Any, list[Agent], list[dict], list[dict]]:
     """A console, ``out`` made, and the usable agents of ``spec`` with their env kwargs and the
     unusable files (named on the console); exits when none is usable."""
-    from rich.console import Console
+    from pamrun.runio import console as make_console
 
-    console = Console() if Console().is_terminal else Console(width=160)  # logs keep whole rows
+    console = make_console()
     out.mkdir(parents=True, exist_ok=True)
     agents, kwargs, errors = load_agents(spec, cfg)
     for err in errors:
@@ -419,7 +419,8 @@ def robustness_table(rows: list[dict], ecfg):
     table = Table(title=f"Robustness ({ecfg.episodes} episodes per cell, seeds {ecfg.seed}.."
                         f"{ecfg.seed + ecfg.episodes - 1}; walk test with its 95 % Wilson interval)")
     for col in ("agent", "perturbation", "what", "walk test (95 % CI)", "stands", "distance (m)", "blow-ups"):
-        table.add_column(col, justify="left" if col in ("agent", "perturbation", "what") else "right", no_wrap=True)
+        table.add_column(col, justify="left" if col in ("agent", "perturbation", "what") else "right",
+                         no_wrap=col != "agent", overflow="fold")
     for row in rows:
         table.add_row(row["agent"], row["perturbation"], row["note"], pass_text(row), f"{row['stand_rate']:.0%}",
                       f"{row['distance_mean']:.2f} ± {row['distance_std']:.2f}", f"{row['physics_error_rate']:.0%}")
@@ -540,7 +541,7 @@ def leaderboard_table(ranked: list[dict], ecfg, limit: int = 20):
                         f"ranked by {', '.join(ecfg.rank_by)})")
     for col in ("#", "agent", "walk test (95 % CI)", "distance (m)", "min (m)", "return", "time (s)", "falls",
                 "max |y| (m)", "dP (kPa/step)"):
-        table.add_column(col, justify="left" if col == "agent" else "right", no_wrap=True)
+        table.add_column(col, justify="left" if col == "agent" else "right", no_wrap=col != "agent", overflow="fold")
     for row in ranked[:limit]:
         verdict = f"[green]{pass_text(row)}[/green]" if row["walk_test"] else pass_text(row)
         table.add_row(str(row["rank"]), row["agent"], verdict,
@@ -559,7 +560,7 @@ def gait_table(ranked: list[dict], limit: int = 20):
     table = Table(title="Gait (means ± std over episodes; 'at a stop': the joint most often within 2° of a stop)")
     for col in ("#", "agent", "speed (m/s)", "steps/s", "step (m)", "symmetry time/length", "duty", "at a stop",
                 "slip (m/s)", "CoT", "air (NL/m)"):
-        table.add_column(col, justify="left" if col == "agent" else "right", no_wrap=True)
+        table.add_column(col, justify="left" if col == "agent" else "right", no_wrap=col != "agent", overflow="fold")
 
     def pm(row: dict, name: str, fmt: str = ".2f") -> str:
         return f"{row[f'{name}_mean']:{fmt}} ± {row[f'{name}_std']:{fmt}}"

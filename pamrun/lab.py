@@ -8,21 +8,18 @@ from __future__ import annotations
 
 import datetime as dt
 import json
-import sys
 from dataclasses import replace
 
 import numpy as np
 from omegaconf import DictConfig
-from rich.console import Console
 from rich.table import Table
 
 from pamrun import plots
 from pamrun.config import SPRING_FILE, Config, to_object
 from pamrun.muscle import FORCE_LAWS, calibrate_spring, simulate_step
-from pamrun.runio import run_dir
+from pamrun.runio import console as make_console, run_dir
 
-# A log file or pipe gets 120 columns (rich's 80 would cut the wider tables).
-console = Console() if sys.stdout.isatty() else Console(width=120)
+console = make_console()  # a terminal's width, or wide enough in a log that no table is cut
 
 
 def step_responses(cfg: Config, every_s: float = 0.01) -> dict:

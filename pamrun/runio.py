@@ -13,6 +13,19 @@ from pathlib import Path
 from typing import Any, Callable
 
 
+# Outside a terminal (a log file, a pipe, CI) the console is this wide, so that no table cuts a
+# cell with "…" and no path is broken: rich draws a table only as wide as its content.
+LOG_WIDTH = 400
+
+
+def console():
+    """The console a command prints to: a terminal's own width, or LOG_WIDTH outside one."""
+    from rich.console import Console
+
+    terminal = Console()
+    return terminal if terminal.is_terminal else Console(width=LOG_WIDTH)
+
+
 def run_dir() -> Path:
     """The Hydra run directory of this job (created by Hydra), announced on the console."""
     from hydra.core.hydra_config import HydraConfig

@@ -62,12 +62,12 @@ def optuna_search(dcfg: DictConfig) -> None:
     import optuna
     from hydra.core.hydra_config import HydraConfig
     from optuna.trial import TrialState
-    from rich.console import Console
+    from pamrun.runio import console as make_console
 
     from pamrun.config import to_object
     from pamrun.runio import run_dir
 
-    console = Console()
+    console = make_console()
     cfg = to_object(dcfg)
     ocfg, metric = cfg.sweep.optuna, cfg.sweep.metric
     if not ocfg.params:

@@ -323,7 +323,7 @@ def summary_table(result: dict):
     table = Table(title="Sweep summary (mean ± 95 % CI over seeds)",
                   caption=("common: " + " ".join(result["common"])) if result["common"] else None)
     for col in ("setting", "done", *(METRIC_LABELS[m] for m in JOB_METRICS)):
-        table.add_column(col, justify="left" if col == "setting" else "right")
+        table.add_column(col, justify="left" if col == "setting" else "right", overflow="fold")
     for r in result["rows"]:
         done = f"{r['done']}/{r['jobs']}" + (f" [red]({r['failed']} failed)[/red]" if r["failed"] else "")
         cells = [fmt_ci(r[m], r[f"{m}_ci95"], 0 if m == "frames_to_first_save" else 2) for m in JOB_METRICS]
@@ -333,9 +333,9 @@ def summary_table(result: dict):
 
 
 def print_summary(result: dict, sweep_dir: Path) -> None:
-    from rich.console import Console
+    from pamrun.runio import console as make_console
 
-    console = Console() if Console().is_terminal else Console(width=160)
+    console = make_console()
     console.print(summary_table(result))
     console.print(result["verdict"], soft_wrap=True)
     for f in result["failed"]:

@@ -241,12 +241,12 @@ def write_log(path: Path, fields: tuple[str, ...], rows: list[dict]) -> None:
 
 def train(dcfg: DictConfig) -> None:
     """The Hydra task of ``pamrun train``: the recipe, top to bottom."""
-    from rich.console import Console
+    from pamrun.runio import console as make_console
     from torch.utils.tensorboard import SummaryWriter
 
     from pamrun.env import space_sizes
 
-    console = Console()
+    console = make_console()
     cfg, out, resuming = open_run(to_object(dcfg), run_dir(), console, HydraConfig.get().overrides.task)
     ckpt_dir = out / "checkpoints"
     seed_everything(cfg.seed)

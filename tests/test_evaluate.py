@@ -282,3 +282,16 @@ def test_find_checkpoints_in_a_folder_of_runs(trained_run, tmp_path):
     assert len(found) == 8 and {p.parent.parent.name for p in found} == {"0", "1"}
     assert len(find_checkpoints(str(sweep), include_last=False)) == 6  # 2 saved + best_eval per run
     assert len(find_checkpoints(str(trained_run / "checkpoints" / "last.pt"))) == 1
+
+
+def test_outside_a_terminal_no_table_cuts_a_path(tmp_path):
+    """A log keeps every agent's whole label and path: no '…' (rich's cut) in any table."""
+    deep = tmp_path / ("a_rather_long_folder_name_for_a_sweep_of_many_settings_" * 3) / "checkpoints"
+    deep.mkdir(parents=True)
+    shutil.copy(_fake_agent(tmp_path).path, deep / "agent_ep000001_r1.0.pt")
+    out = tmp_path / "ev"
+    proc = run_pamrun("eval", f"ckpt={deep / 'agent_ep000001_r1.0.pt'}", "eval.episodes=1", "eval.episode_s=0.5",
+                      "eval.walk_duration_s=0.5", f"hydra.run.dir={out}")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (row,) = json.loads((out / "leaderboard.json").read_text())["agents"]
+    assert len(row["agent"]) > 160 and row["agent"] in proc.stdout and "…" not in proc.stdout
