@@ -277,7 +277,11 @@ def train(dcfg: DictConfig) -> None:
     update_budget, status, failure = 0.0, None, None
     console.print(header_table(cfg, out))
     progress = Progress(console, cfg.train.max_frames, frames)
-    previous_sigterm = signal.signal(signal.SIGTERM, _terminate)
+    # Ctrl-C must stop the run with a final checkpoint even when whatever started pamrun ignored
+    # SIGINT (a script's `cmd &`, some CI runners): Python then keeps SIG_IGN and would never
+    # raise KeyboardInterrupt, and the run would train on to its budget.
+    previous = {signal.SIGTERM: signal.signal(signal.SIGTERM, _terminate),
+                signal.SIGINT: signal.signal(signal.SIGINT, signal.default_int_handler)}
     try:
         for batch in collector:
             batch = batch.reshape(-1)
@@ -315,7 +319,8 @@ def train(dcfg: DictConfig) -> None:
         if status == "failed":
             raise
     finally:
-        signal.signal(signal.SIGTERM, previous_sigterm)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
         progress.stop()
         collector.shutdown()
         if evals:
