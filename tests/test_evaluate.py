@@ -135,6 +135,7 @@ def trained_run(tmp_path_factory):
     return run_dir
 
 
+@pytest.mark.slow
 def test_eval_of_a_run_directory_end_to_end(trained_run, tmp_path):
     out = tmp_path / "ev"
     proc = run_pamrun("eval", f"ckpt={trained_run}", "eval.episodes=2", "eval.workers=2", "eval.render=true",
@@ -173,6 +174,7 @@ def test_eval_of_a_run_directory_end_to_end(trained_run, tmp_path):
     assert "Leaderboard" in proc.stdout and first["agent"] in proc.stdout
 
 
+@pytest.mark.slow
 def test_parallel_and_single_worker_results_are_identical(trained_run):
     cfg = to_object(compose_config("eval.episodes=3", "eval.episode_s=3.0", "eval.walk_duration_s=3.0"))
     agents, kwargs, errors = load_agents(str(trained_run), cfg)
@@ -224,6 +226,7 @@ def _bad_files(folder, good):
     return malicious.marker
 
 
+@pytest.mark.slow
 def test_bad_checkpoints_are_named_and_the_others_evaluated(trained_run, tmp_path):
     good = sorted((trained_run / "checkpoints").glob("agent_ep*.pt"))[0]
     marker = _bad_files(tmp_path / "mixed", good)
@@ -273,6 +276,7 @@ def test_only_unreadable_checkpoints_is_an_error(tmp_path):
     assert not (tmp_path / "ev").exists()  # refused before anything is written
 
 
+@pytest.mark.slow
 def test_find_checkpoints_in_a_folder_of_runs(trained_run, tmp_path):
     sweep = tmp_path / "sweep"
     for name in ("0", "1"):
@@ -284,6 +288,7 @@ def test_find_checkpoints_in_a_folder_of_runs(trained_run, tmp_path):
     assert len(find_checkpoints(str(trained_run / "checkpoints" / "last.pt"))) == 1
 
 
+@pytest.mark.slow
 def test_outside_a_terminal_no_table_cuts_a_path(tmp_path):
     """A log keeps every agent's whole label and path: no '…' (rich's cut) in any table."""
     deep = tmp_path / ("a_rather_long_folder_name_for_a_sweep_of_many_settings_" * 3) / "checkpoints"

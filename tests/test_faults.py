@@ -53,6 +53,7 @@ def _continuous(run_dir: Path) -> bool:
     return episodes == list(range(1, len(episodes) + 1))
 
 
+@pytest.mark.slow
 def test_kill_before_the_first_checkpoint_then_the_same_command_starts_clean(tmp_path):
     run_dir = tmp_path / "run"
     extra = ("train.max_frames=1400", "train.checkpoint_every_frames=100000")
@@ -69,6 +70,7 @@ def test_kill_before_the_first_checkpoint_then_the_same_command_starts_clean(tmp
     assert _continuous(run_dir) and json.loads((run_dir / "run.json").read_text())["frames"] == 1400
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig, rc, status, sigint_ignored", [
     (signal.SIGTERM, 143, "terminated", False),
     (signal.SIGINT, 130, "interrupted", False),
@@ -95,6 +97,7 @@ def test_a_signal_saves_a_final_checkpoint_and_the_same_command_continues(tmp_pa
     assert run["status"] == "max_frames" and run["episodes"] > stopped_at and _continuous(run_dir)
 
 
+@pytest.mark.slow
 def test_another_command_in_a_finished_run_directory_is_refused(tmp_path):
     run_dir = tmp_path / "run"
     first = run_pamrun("train", *SMOKE, "train.max_frames=400", f"hydra.run.dir={run_dir}")
@@ -133,6 +136,7 @@ CORRUPTIONS = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(CORRUPTIONS))
 def test_corrupt_resume_state_is_named_in_one_line(stopped_run, tmp_path, name):
     run_dir = tmp_path / "copy"
@@ -146,6 +150,7 @@ def test_corrupt_resume_state_is_named_in_one_line(stopped_run, tmp_path, name):
     assert json.loads((run_dir / "run.json").read_text())["status"] == "terminated"  # nothing trained on
 
 
+@pytest.mark.slow
 def test_physics_blow_ups_are_flagged_never_saved_and_stop_the_run(tmp_path):
     run_dir = tmp_path / "light"
     proc = run_pamrun("train", *SMOKE, "body.mass_kg=1e-4", "train.save_threshold=-1e9", "train.max_frames=3000",
@@ -217,6 +222,7 @@ def small_disk(tmp_path):
     subprocess.run(["umount", "-l", str(mount_point)], capture_output=True)
 
 
+@pytest.mark.slow
 def test_a_full_disk_stops_the_run_with_a_message_not_a_bus_error(small_disk):
     run_dir = small_disk / "run"
     proc = run_pamrun("train", *SMOKE, "train.max_frames=1200", "train.checkpoint_every_frames=400",

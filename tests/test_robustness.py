@@ -178,6 +178,7 @@ def test_a_bad_perturbation_on_the_command_line_writes_nothing(tmp_path):
     assert "eval.perturbations.friction_low.values.body.friction_static: must be >= 0" in proc.stderr
 
 
+@pytest.mark.slow
 def test_the_robustness_suite_end_to_end(tmp_path):
     """Two agents x three perturbations (one of them the user's own) through ``pamrun eval``."""
     folder = tmp_path / "agents"

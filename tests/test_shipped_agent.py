@@ -54,6 +54,7 @@ def check_walks(episodes: list[dict], agg: dict) -> None:
     assert all(np.isfinite(e["return"]) and np.isfinite(e["distance_m"]) for e in episodes)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kernel, workers", [("numba", 1), ("numpy", 2)])
 def test_the_shipped_agent_walks_on_either_kernel(kernel, workers):
     """The other numeric paths: numba at 1 worker, the numpy reference kernel at 2 (the kernel
@@ -67,6 +68,7 @@ def test_the_shipped_agent_walks_on_either_kernel(kernel, workers):
     check_walks(episodes, aggregate(episodes, cfg.eval))
 
 
+@pytest.mark.slow
 def test_the_shipped_agent_walks_and_renders(tmp_path):
     """``pamrun eval`` on its defaults (50 held-out episodes, numba, one worker per core), video included."""
     out = tmp_path / "walker"

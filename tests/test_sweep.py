@@ -72,6 +72,7 @@ def smoke_sweep(tmp_path_factory):
     return sweep_dir, args, proc
 
 
+@pytest.mark.slow
 def test_smoke_sweep_trains_evaluates_and_summarises(smoke_sweep):
     sweep_dir, _, proc = smoke_sweep
     jobs = collect_jobs(sweep_dir)
@@ -107,6 +108,7 @@ def test_smoke_sweep_trains_evaluates_and_summarises(smoke_sweep):
     assert "Sweep summary" in proc.stdout and "Joblib.Parallel(n_jobs=2" in proc.stderr + proc.stdout
 
 
+@pytest.mark.slow
 def test_rerunning_a_finished_sweep_does_no_work(smoke_sweep):
     sweep_dir, args, _ = smoke_sweep
     before = {j["job"]: (j["end"], j["attempts"]) for j in collect_jobs(sweep_dir)}
@@ -121,6 +123,7 @@ def test_rerunning_a_finished_sweep_does_no_work(smoke_sweep):
     assert {p: p.stat().st_mtime_ns for p in stamps} == stamps and "Sweep summary" in proc.stdout
 
 
+@pytest.mark.slow
 def test_summarize_on_demand(smoke_sweep, tmp_path):
     sweep_dir = smoke_sweep[0]
     (sweep_dir / "summary.csv").unlink()
@@ -130,6 +133,7 @@ def test_summarize_on_demand(smoke_sweep, tmp_path):
     assert not (sweep_dir / ".hydra").exists()  # a read-only command leaves no Hydra files behind
 
 
+@pytest.mark.slow
 def test_a_failing_job_is_recorded_and_the_others_finish(tmp_path):
     sweep_dir = tmp_path / "fail"
     proc = run_pamrun("sweep", "-m", "body.height_m=1.8,-1", "seed=0", *TINY, f"hydra.sweep.dir={sweep_dir}")
@@ -145,6 +149,7 @@ def test_a_failing_job_is_recorded_and_the_others_finish(tmp_path):
     assert "not done" in proc.stdout and "body.height_m=-1" in proc.stdout
 
 
+@pytest.mark.slow
 def test_an_interrupted_sweep_resumes_its_jobs(tmp_path):
     """SIGKILL a sweep mid-training; the same command resumes the job from its last checkpoint."""
     sweep_dir = tmp_path / "killed"
@@ -177,6 +182,7 @@ def test_an_interrupted_sweep_resumes_its_jobs(tmp_path):
     assert (sweep_dir / "default" / "eval" / "selection.json").exists()
 
 
+@pytest.mark.slow
 def test_the_ray_launcher_runs_a_sweep_on_a_local_ray_instance(tmp_path):
     sweep_dir = tmp_path / "ray"
     proc = run_pamrun("sweep", "-m", "seed=0,1", *TINY, "hydra/launcher=ray_cluster",
@@ -207,6 +213,7 @@ def test_the_slurm_launcher_config_composes():
 # --------------------------------------------------------------------------- Optuna
 
 
+@pytest.mark.slow
 def test_optuna_search_averages_seeds_and_resumes(tmp_path):
     import optuna
 

@@ -16,6 +16,7 @@ TINY = ["train=smoke", "train.max_frames=600", "train.init_random_frames=200", "
         "train.checkpoint_every_frames=200", "seed=1"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algo", ["ddpg", "td3"])
 def test_train_leaves_its_files(tmp_path, algo):
     run_dir = tmp_path / algo
@@ -42,6 +43,7 @@ def test_train_leaves_its_files(tmp_path, algo):
     assert (run_dir / ".hydra" / "config.yaml").exists()
 
 
+@pytest.mark.slow
 def test_threshold_not_reached_saves_nothing(tmp_path):
     run_dir = tmp_path / "none"
     proc = run_pamrun("train", *TINY, "train.max_frames=400", "train.save_threshold=1e9", f"hydra.run.dir={run_dir}")
@@ -49,6 +51,7 @@ def test_threshold_not_reached_saves_nothing(tmp_path):
     assert not list((run_dir / "checkpoints").glob("agent_*.pt"))
 
 
+@pytest.mark.slow
 def test_unknown_algo_fails_before_the_run_dir(tmp_path):
     run_dir = tmp_path / "bad"
     proc = run_pamrun("train", "algo=ppo", f"hydra.run.dir={run_dir}")
@@ -58,6 +61,7 @@ def test_unknown_algo_fails_before_the_run_dir(tmp_path):
     assert not run_dir.exists()
 
 
+@pytest.mark.slow
 def test_killed_run_resumes_without_losing_or_duplicating(tmp_path):
     """SIGKILL mid-run, then `resume=`: the run completes with one row per episode."""
     import os
@@ -115,6 +119,7 @@ def test_plot_training_redraws_from_csv(tmp_path):
     assert (run_dir / "training.png").stat().st_size > 5000
 
 
+@pytest.mark.slow
 def test_evaluations_during_training(tmp_path):
     """A smoke run evaluates its actor every 400 frames: evals.csv, eval/* in TensorBoard, best_eval.pt."""
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
@@ -166,6 +171,7 @@ def test_evaluation_is_deterministic_and_matches_pamrun_eval(tmp_path, cfg):
     assert first["duration_mean"] == pytest.approx(reference["duration_mean"])
 
 
+@pytest.mark.slow
 def test_stop_on_walk(tmp_path):
     """With a walk test an untrained (standing) actor passes, the run stops at its first evaluation."""
     run_dir = tmp_path / "walked"
@@ -181,6 +187,7 @@ def test_stop_on_walk(tmp_path):
     assert proc.returncode != 0 and "train.stop_on_walk" in proc.stderr + proc.stdout
 
 
+@pytest.mark.slow
 def test_resume_forgets_evaluations_after_the_checkpoint(tmp_path):
     from pamrun.train import EvalLog
 
@@ -195,6 +202,7 @@ def test_resume_forgets_evaluations_after_the_checkpoint(tmp_path):
         EvalLog.truncate(run_dir, 400)
 
 
+@pytest.mark.slow
 def test_async_collection(tmp_path):
     """train.async_collection: the env steps in its own process; the run's files and counters are
     those of a synchronous run."""
@@ -240,6 +248,7 @@ def test_walk_curriculum_relabels_to_the_reward_with_walk_kvx(cfg):
     assert not WalkCurriculum(cfg, [{"stand_rate": "1", "frames": "1400"}]).walking
 
 
+@pytest.mark.slow
 def test_walk_curriculum_in_a_run(tmp_path):
     """A run with train.walk_kvx starts the walking stage at its first standing evaluation after
     the actor learns, says so, and records it in run.json and TensorBoard."""
@@ -264,6 +273,7 @@ def test_walk_curriculum_in_a_run(tmp_path):
     assert proc.returncode != 0 and "train.walk_kvx" in proc.stderr + proc.stdout
 
 
+@pytest.mark.slow
 def test_resume_takes_a_new_budget_and_names_what_it_ignores(tmp_path):
     """``resume=<dir> train.max_frames=...`` extends a finished run; any other value on a resume's
     command line is named as ignored, and the run keeps its own config."""
