@@ -130,7 +130,8 @@ class TrainingEvaluator:
             return actor(torch.as_tensor(obs, dtype=torch.float32).unsqueeze(0))[0].numpy()
 
         with torch.no_grad(), torch_threads(1):
-            episodes = [run_episode(policy, self.env, self.ecfg.selection_seed + k) for k in range(self.episodes)]
+            episodes = [run_episode(policy, self.env, self.ecfg.selection_seed + k, keep_steps=False)
+                        for k in range(self.episodes)]
         seeds = [self.ecfg.selection_seed, self.ecfg.selection_seed + self.episodes - 1]
         return {**aggregate(episodes, self.ecfg), "seeds": seeds, "eval_s": time.perf_counter() - start}
 
@@ -382,14 +383,14 @@ def run_suite(cfg, spec: str, out: Path) -> list[dict]:
     runs = [(agent, name, perturb(kw, ecfg.perturbations[name], f"eval.perturbations.{name}"))
             for agent, kw in zip(agents, kwargs) for name in names]
     is_held_out = warn_if_not_held_out(agents, cfg, console)
-    results, workers, wall = run_all([r[0] for r in runs], [r[2] for r in runs], ecfg, console,
+    results, workers, wall = run_all([r[0] for r in runs], [r[2] for r in runs], ecfg, console, keep_steps=False,
                                      what=f"agent(s) x {len(names)} perturbation(s)")
     rows = []
     with (out / "robustness_episodes.jsonl").open("w") as fh:
         for (agent, name, _), episodes in zip(runs, results):
             for k, episode in enumerate(episodes):
                 record = {"agent": agent.label, "perturbation": name, "episode": k,
-                          **{key: v for key, v in episode.items() if key != "steps"},
+                          **episode,
                           "walk_pass": walk_passed(episode, ecfg)}
                 fh.write(json.dumps(record) + "\n")
             row = {"agent": agent.label, "perturbation": name, "note": ecfg.perturbations[name].note,
@@ -427,7 +428,7 @@ def robustness_table(rows: list[dict], ecfg):
     return table
 
 
-def run_all(agents: list[Agent], kwargs: list[dict], ecfg, console, what: str = "agent(s)"
+def run_all(agents: list[Agent], kwargs: list[dict], ecfg, console, what: str = "agent(s)", keep_steps: bool = True
             ) -> tuple[list[list[dict]], int, float]:
     """Every agent's episodes, on ``eval.workers`` processes with a progress display."""
     from pamrun.runio import Progress
@@ -447,7 +448,8 @@ def run_all(agents: list[Agent], kwargs: list[dict], ecfg, console, what: str = 
         progress.update(done[0], f"of {len(agents) * ecfg.episodes}")
 
     try:
-        results = evaluate_agents(agents, kwargs, ecfg.episodes, ecfg.seed, workers, on_episode=tick)
+        results = evaluate_agents(agents, kwargs, ecfg.episodes, ecfg.seed, workers, on_episode=tick,
+                                  keep_steps=keep_steps)
     except KeyboardInterrupt:
         raise SystemExit("pamrun: evaluation interrupted; no results written (checkpoints are untouched)") from None
     finally:
@@ -496,11 +498,11 @@ def draw_figures(out: Path, ecfg, agents: list[Agent], kwargs: list[dict], resul
     from pamrun import plots
 
     written = ["episodes.jsonl", "leaderboard.csv", "leaderboard.json", "best.pt", "selection.json"]
-    plots.trajectories(out / "episodes.jsonl", out / "leaderboard.json", out / "trajectories.png",
-                       top_k=ecfg.top_k, lateral_m=ecfg.walk_lateral_m)
-    plots.pressures(out / "episodes.jsonl", best.label, 0, out / "pressures.png")
-    written += ["trajectories.png", "pressures.png"]
-    if ecfg.save_steps:
+    if ecfg.save_steps:  # the per-step figures need the per-step data
+        plots.trajectories(out / "episodes.jsonl", out / "leaderboard.json", out / "trajectories.png",
+                           top_k=ecfg.top_k, lateral_m=ecfg.walk_lateral_m)
+        plots.pressures(out / "episodes.jsonl", best.label, 0, out / "pressures.png")
+        written += ["trajectories.png", "pressures.png"]
         spec = gait_spec(kwargs[agents.index(best)])
         plots.gait(plots.read_episodes(out / "episodes.jsonl", {best.label}), spec.joint_limits_rad,
                    spec.contact_threshold_n, out / "gait.png")
@@ -558,7 +560,7 @@ def gait_table(ranked: list[dict], limit: int = 20):
     from rich.table import Table
 
     table = Table(title="Gait (means ± std over episodes; 'at a stop': the joint most often within 2° of a stop)")
-    for col in ("#", "agent", "speed (m/s)", "steps/s", "step (m)", "symmetry time/length", "duty", "at a stop",
+    for col in ("#", "agent", "speed (m/s)", "steps/s", "stride (m)", "symmetry time/length", "duty", "at a stop",
                 "slip (m/s)", "CoT", "air (NL/m)"):
         table.add_column(col, justify="left" if col == "agent" else "right", no_wrap=col != "agent", overflow="fold")
 
@@ -567,7 +569,7 @@ def gait_table(ranked: list[dict], limit: int = 20):
 
     for row in ranked[:limit]:
         table.add_row(str(row["rank"]), row["agent"], pm(row, "speed"), pm(row, "step_frequency_hz"),
-                      pm(row, "step_length_m"),
+                      pm(row, "stride_length_m"),
                       f"{row['step_time_symmetry_mean']:.2f} / {row['step_length_symmetry_mean']:.2f}",
                       f"{row['duty_factor_mean']:.2f}", f"{row['stop_share_max_mean']:.0%}", pm(row, "foot_slip_m_s"),
                       pm(row, "cost_of_transport"), pm(row, "air_nl_per_m", ".1f"))

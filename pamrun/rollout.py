@@ -125,8 +125,10 @@ def gait_spec(kwargs: dict) -> GaitSpec:
     return GaitSpec.from_configs(env.body_cfg, env.muscle_cfg, env.mass_kg, env.env_cfg.control_dt_s)
 
 
-def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = None) -> dict[str, Any]:
-    """One deterministic episode: metrics and per-step arrays (``frame_sink`` gets rendered frames)."""
+def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = None,
+                keep_steps: bool = True) -> dict[str, Any]:
+    """One deterministic episode: metrics and, with ``keep_steps``, its per-step arrays as lists
+    (``frame_sink`` gets rendered frames)."""
     obs, info = env.reset(seed=seed)
     regulator, drive = env.drive.pairs.regulator, env.drive
     command = regulator.target_pressure_kpa(drive.voltage_v)
@@ -162,7 +164,7 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
               **{k: np.asarray(v, dtype=float) for k, v in steps.items()}}
     gait = episode_metrics(arrays, GaitSpec.from_configs(env.body_cfg, env.muscle_cfg, env.mass_kg,
                                                          env.env_cfg.control_dt_s))
-    return {
+    out = {
         "seed": seed,
         "return": float(total),
         "distance_m": distance,
@@ -173,20 +175,21 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
         "speed_m_s": distance / duration,
         "pressure_change_kpa": change / n,
         **gait,
-        # rounded for the file (1e-6 of each unit); the metrics above use the full values
-        "steps": {k: np.round(v, 6).tolist() for k, v in arrays.items()},
     }
+    if keep_steps:  # rounded for the file (1e-6 of each unit); the metrics above use the full values
+        out["steps"] = {k: np.round(v, 6).tolist() for k, v in arrays.items()}
+    return out
 
 
 _WORKER: dict[str, Any] = {}
 
 
-def _init_worker(agents: list[Agent], kwargs: list[dict], seed: int) -> None:
+def _init_worker(agents: list[Agent], kwargs: list[dict], seed: int, keep_steps: bool = True) -> None:
     """Per process: one thread for torch (identical results at any worker count), policies, envs."""
     import torch
 
     torch.set_num_threads(1)
-    _WORKER.update(policies=[make_policy(a) for a in agents], kwargs=kwargs, seed=seed, envs={})
+    _WORKER.update(policies=[make_policy(a) for a in agents], kwargs=kwargs, seed=seed, envs={}, keep_steps=keep_steps)
 
 
 def _run_task(task: tuple[int, int]) -> tuple[int, int, dict]:
@@ -196,7 +199,8 @@ def _run_task(task: tuple[int, int]) -> tuple[int, int, dict]:
     key = json.dumps(_WORKER["kwargs"][i], sort_keys=True)
     if key not in _WORKER["envs"]:
         _WORKER["envs"][key] = PamWalkerEnv(**_WORKER["kwargs"][i])
-    return i, k, run_episode(_WORKER["policies"][i], _WORKER["envs"][key], _WORKER["seed"] + k)
+    return i, k, run_episode(_WORKER["policies"][i], _WORKER["envs"][key], _WORKER["seed"] + k,
+                             keep_steps=_WORKER["keep_steps"])
 
 
 @contextlib.contextmanager
@@ -212,15 +216,16 @@ def torch_threads(n: int):
 
 
 def evaluate_agents(agents: list[Agent], kwargs: list[dict], episodes: int, seed: int, workers: int,
-                    on_episode: Callable[[], None] | None = None) -> list[list[dict]]:
-    """Episode results per agent, ``[agent][episode]``, the same for any number of workers."""
+                    on_episode: Callable[[], None] | None = None, keep_steps: bool = True) -> list[list[dict]]:
+    """Episode results per agent, ``[agent][episode]``, the same for any number of workers
+    (``keep_steps=False``: metrics only, no per-step lists)."""
     import pamrun.agents  # noqa: F401  (torch and TorchRL imported once here, inherited by forked workers)
 
     tasks = [(i, k) for i in range(len(agents)) for k in range(episodes)]
     results: list[list[dict | None]] = [[None] * episodes for _ in agents]
     if workers <= 1:
         with torch_threads(1):
-            _init_worker(agents, kwargs, seed)
+            _init_worker(agents, kwargs, seed, keep_steps)
             try:
                 for task in tasks:
                     i, k, res = _run_task(task)
@@ -235,7 +240,7 @@ def evaluate_agents(agents: list[Agent], kwargs: list[dict], episodes: int, seed
     # fork: workers start in milliseconds and inherit the loaded agents (spawn where fork is absent).
     method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
     pool = ProcessPoolExecutor(min(workers, len(tasks)), mp_context=multiprocessing.get_context(method),
-                               initializer=_init_worker, initargs=(agents, kwargs, seed))
+                               initializer=_init_worker, initargs=(agents, kwargs, seed, keep_steps))
     try:
         for future in as_completed([pool.submit(_run_task, t) for t in tasks]):
             i, k, res = future.result()
