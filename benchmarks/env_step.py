@@ -75,7 +75,7 @@ def spread(values: list[float]) -> tuple[float, float, float]:
 
 def measure(name: str, kernel: str, seconds: float, repeats: int) -> dict:
     env = PamWalkerEnv(muscle={**preset("muscle", name), "kernel": kernel})
-    used = "numba" if env.drive._kernel is not None else "numpy"  # the thesis coupling is numpy only
+    used = "numba" if env.drive.compiled else "numpy"  # the thesis coupling is numpy only
     ready_s = warm_up(env)
     rates_env, rates_bare, ratios = [], [], []
     for _ in range(repeats):  # alternating, so that load drift hits both

@@ -25,7 +25,11 @@ import tempfile
 import time
 from pathlib import Path
 
-COMMAND = ["train", "train=smoke", "algo=td3", "train.max_frames=3000", "train.init_random_frames=200",
+from pamrun.rundir import RunFiles
+from pamrun.runio import read_json
+
+COMMAND = ["train", "experiment=thesis", "muscle=sized", "train=smoke", "algo=td3", "train.max_frames=3000",
+           "train.init_random_frames=200",
            "train.updates_per_frame=0.25", "train.checkpoint_every_frames=400", "seed=7"]
 
 
@@ -37,10 +41,11 @@ def trial(run_dir: Path, sig: signal.Signals, after_s: float) -> dict:
     if not finished_first:
         os.killpg(proc.pid, sig)
     proc.wait()
-    had_checkpoint = (run_dir / "checkpoints" / "last.pt").exists()
+    files = RunFiles(run_dir)
+    had_checkpoint = files.last.exists()
     again = subprocess.run(args, capture_output=True, text=True)
-    run = json.loads((run_dir / "run.json").read_text()) if (run_dir / "run.json").exists() else {}
-    rows = list(csv.DictReader((run_dir / "episodes.csv").open())) if (run_dir / "episodes.csv").exists() else []
+    run = read_json(files.run_json)
+    rows = list(csv.DictReader(files.episodes.open())) if files.episodes.exists() else []
     episodes = [int(r["episode"]) for r in rows]
     held = (again.returncode == 0 and run.get("status") == "max_frames" and run.get("frames") == 3000
             and episodes == list(range(1, len(episodes) + 1)) and run.get("episodes") == len(episodes))

@@ -23,6 +23,7 @@ import numpy as np
 from pamrun.config import Config, Perturbation
 from pamrun.evaluate import load_agents
 from pamrun.rollout import aggregate, evaluate_agents, perturb
+from pamrun.task import walk_passed
 
 RESULTS = Path(__file__).parent / "results" / "shipped_agent_paths.jsonl"
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,8 +51,7 @@ def main() -> None:
                    "wall_s": round(time.perf_counter() - start, 2),
                    **{k: agg[k] for k in ("walk_passes", "walk_pass_ci_low", "walk_pass_ci_high", "stand_rate")},
                    "distance_median": float(np.median([e["distance_m"] for e in episodes])),
-                   "passed": "".join("1" if e["distance_m"] >= cfg.eval.walk_distance_m and not e["fell"]
-                                     and e["max_abs_y_m"] <= cfg.eval.walk_lateral_m else "0" for e in episodes)}
+                   "passed": "".join("1" if walk_passed(e, cfg.eval) else "0" for e in episodes)}
             print(f"seeds {seed}.. {kernel:5} {workers} worker(s): {row['walk_passes']}/{args.episodes} "
                   f"({100 * row['walk_pass_ci_low']:.0f}-{100 * row['walk_pass_ci_high']:.0f} %), stand "
                   f"{row['stand_rate']:.0%}, median {row['distance_median']:.2f} m  {row['passed']}", flush=True)

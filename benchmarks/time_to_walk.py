@@ -3,7 +3,7 @@
     python benchmarks/time_to_walk.py [--preset walk] [--seeds 0 1] [--minutes 120] [-- extra overrides]
     python benchmarks/time_to_walk.py --runs outputs/.../run_a outputs/.../run_b   # read finished runs
 
-Each seed is one ``pamrun train train=<preset> seed=<s> train.max_minutes=<minutes>``, one
+Each seed is one ``pamrun train experiment=<preset> seed=<s> train.max_minutes=<minutes>``, one
 after the other (a run uses the machine's cores). Its ``evals.csv`` (the evaluations during
 training: ``pamrun eval``'s walk test on 10 episodes with 0.01 rad start noise) gives the
 wall-clock time and the frames to two milestones:
@@ -15,7 +15,7 @@ The sized robot stands passively at zero command, so an untrained actor (whose o
 start near 0) passes *stand* at the first evaluation. The row therefore also gives
 **stand, learned**: the first evaluation after the actor's first update
 (``train.actor_start_frames``, ``train.init_random_frames``) in which every episode stands
-(``pamrun.train.stands_learned``: the milestone at which ``train.walk_kvx``'s curriculum
+(``pamrun.task.stands_learned``: the milestone at which ``train.walk_kvx``'s curriculum
 starts walking; the row gives its frames as ``walk_kvx_from_frames``).
 
 The milestones and ``best_*`` come from the seeds the run selects its agents on (biased
@@ -31,7 +31,6 @@ benchmarks/results/time_to_walk.jsonl.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import os
 import platform
@@ -46,14 +45,16 @@ RESULTS = Path(__file__).parent / "results" / "time_to_walk.jsonl"
 
 def milestones(run: Path) -> dict:
     """Wall time and frames to stand and to walk, and the best evaluation, from a run's files."""
-    from pamrun.train import actor_learns_from, saved_run_config, stands_learned
+    from pamrun.rundir import RunFiles, read_evals, saved_config
+    from pamrun.runio import read_json
+    from pamrun.task import actor_learns_from, stands_learned
 
-    rows = list(csv.DictReader((run / "evals.csv").open())) if (run / "evals.csv").exists() else []
-    info = json.loads((run / "run.json").read_text()) if (run / "run.json").exists() else {}
+    rows = read_evals(run)
+    info = read_json(RunFiles(run).run_json)
     out = {"run": str(run), "evaluations": len(rows), "status": info.get("status"), "frames": info.get("frames"),
            "wall_time_s": info.get("wall_time_s"), "command": info.get("command"), "git_commit": info.get("git_commit"),
            "walk_kvx_from_frames": info.get("walk_kvx_from_frames")}
-    cfg = saved_run_config(run)
+    cfg = saved_config(run)
     learning = actor_learns_from(cfg)
     out["actor_learns_from_frames"] = learning
     for name, reached in (("stand", lambda r: float(r["stand_rate"]) >= 1.0),
@@ -75,9 +76,10 @@ def held_out_evaluation(run: Path) -> dict | None:
     from pamrun.config import Config
     from pamrun.evaluate import held_out, load_agents
     from pamrun.rollout import aggregate, evaluate_agents
+    from pamrun.rundir import RunFiles
     from pamrun.runtime import usable_cores
 
-    best = run / "checkpoints" / "best_eval.pt"
+    best = RunFiles(run).best_eval
     if not best.exists():
         return None
     cfg = Config()
@@ -91,7 +93,7 @@ def held_out_evaluation(run: Path) -> dict | None:
 
 def train(preset: str, seed: int, minutes: float, extra: list[str], root: Path) -> Path:
     run = root / f"{preset}-seed{seed}"
-    cmd = [sys.executable, "-m", "pamrun.cli", "train", f"train={preset}", f"seed={seed}",
+    cmd = [sys.executable, "-m", "pamrun.cli", "train", f"experiment={preset}", f"seed={seed}",
            f"train.max_minutes={minutes}", *extra, f"hydra.run.dir={run}"]
     print("$", " ".join(cmd[2:]), flush=True)
     with (root / f"{preset}-seed{seed}.log").open("w") as log:
@@ -105,7 +107,7 @@ def fmt(seconds: float | None, frames: int | None) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--preset", default="walk", help="train=<preset>")
+    parser.add_argument("--preset", default="walk", help="experiment=<preset>")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
     parser.add_argument("--minutes", type=float, default=120.0, help="wall-clock budget per seed")
     parser.add_argument("--root", type=Path, default=Path("outputs/time_to_walk"))

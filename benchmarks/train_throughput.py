@@ -34,18 +34,20 @@ import torch
 
 from pamrun import agents
 from pamrun.config import AlgoConfig
+from pamrun.rundir import RunFiles
+from pamrun.runio import read_json
 
 OBS, ACT, BATCH = 43, 10, 128
 
 
 def pamrun_loop(algo: str, frames: int, *extra: str) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
-        cmd = [sys.executable, "-m", "pamrun.cli", "train", f"algo={algo}", "train=smoke",
+        cmd = [sys.executable, "-m", "pamrun.cli", "train", "experiment=thesis", "muscle=sized", f"algo={algo}", "train=smoke",
                f"train.max_frames={frames}", "train.init_random_frames=200", "train.updates_per_frame=1",
                "train.checkpoint_every_frames=1000000", "train.save_threshold=1e9", "train.eval_every_frames=0",
                *extra, f"hydra.run.dir={tmp}/run"]
         subprocess.run(cmd, check=True, capture_output=True)
-        run = json.loads(Path(tmp, "run", "run.json").read_text())
+        run = read_json(RunFiles(Path(tmp, "run")).run_json)
     wall = run["wall_time_s"]
     return {"frames_per_s": round(run["frames"] / wall, 1), "updates_per_s": round(run["updates"] / wall, 1),
             "frames": run["frames"], "updates": run["updates"], "wall_s": wall}

@@ -38,13 +38,17 @@ pitch, 43.0 mm hip roll, 10.8 mm knee, 27.7 mm ankle roll.
 Kernel (``muscle.kernel``): the kinematic coupling's muscle step runs as one compiled numba
 call (``numba``, :mod:`pamrun.kernels`) or as the numpy code below (``numpy``, the
 reference); both give the same results to float rounding. The thesis coupling is numpy only.
+
+One class per coupling (:class:`ThesisCoupling`, :class:`KinematicCoupling` and its compiled
+twin :class:`CompiledKinematicCoupling`), chosen once by :func:`make_coupling`;
+:class:`MuscleDrive` turns actions into voltages and hands them to it.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from pamrun.config import BodyConfig, MuscleConfig
+from pamrun.config import LEG_JOINTS, BodyConfig, MuscleConfig
 from pamrun.muscle import AntagonisticPairs
 
 
@@ -55,11 +59,16 @@ def joint_limits_rad(body: BodyConfig) -> np.ndarray:
     return np.deg2rad([lim for side in SIDES for lim in joint_limits_deg(body, side).values()])
 
 
+def _leg_joint_of_each_hinge() -> list[str]:
+    """The LEG_JOINTS name of each of the 10 hinges, JOINTS order (both legs alike)."""
+    from pamrun.body import SIDES
+
+    return [joint for _ in SIDES for joint in LEG_JOINTS]
+
+
 def pulley_radii_m(muscle: MuscleConfig, body: BodyConfig) -> np.ndarray:
     """(10,) pulley radius of each joint [m] (see the module docstring for the rule)."""
-    from pamrun.body import JOINTS, LEG_JOINTS
-
-    names = [LEG_JOINTS[k % len(LEG_JOINTS)] for k in range(len(JOINTS))]
+    names = _leg_joint_of_each_hinge()
     reach = [muscle.reach_rad(name, getattr(body, f"{name}_limits_deg")) for name in names]
     return np.array([muscle.radius_m(name, r) for name, r in zip(names, reach)])
 
@@ -68,17 +77,14 @@ def neutral_angles_rad(muscle: MuscleConfig) -> np.ndarray:
     """(10,) angle of each joint where its pair is balanced at equal pressures, JOINTS order.
 
     The right leg mirrors the roll joints (as its limits do)."""
-    from pamrun.body import LEG_JOINTS, SIDES, mirror_sign
+    from pamrun.body import SIDES, mirror_sign
 
     return np.deg2rad([getattr(muscle.neutral_deg, j) * mirror_sign(side, j) for side in SIDES for j in LEG_JOINTS])
 
 
 def force_scales(muscle: MuscleConfig) -> np.ndarray:
     """(10,) muscles per direction x the size's force ratio, JOINTS order."""
-    from pamrun.body import JOINTS, LEG_JOINTS
-
-    return np.array([getattr(muscle.count, LEG_JOINTS[k % len(LEG_JOINTS)]) for k in range(len(JOINTS))],
-                    float) * muscle.force_scale
+    return np.array([getattr(muscle.count, name) for name in _leg_joint_of_each_hinge()], float) * muscle.force_scale
 
 
 def n_actions(muscle: MuscleConfig) -> int:
@@ -88,13 +94,194 @@ def n_actions(muscle: MuscleConfig) -> int:
     return len(JOINTS) * (2 if muscle.command == "independent" else 1)
 
 
-class MuscleDrive:
-    """All 20 muscles of the robot, stepped together.
+class Coupling:
+    """What every muscle-joint coupling shares: the pairs, their levers and the static torque.
 
-    ``muscle.kernel=numba`` (the default) steps the kinematic coupling with one compiled call
-    per muscle step (:mod:`pamrun.kernels`); ``numpy`` is the reference it matches to float
-    rounding. The thesis coupling always uses numpy. Either way the state lives where the
-    numpy code keeps it (``pairs.regulator.pressure_kpa``, ``contraction_pct``, ``voltage_v``).
+    A coupling steps the pairs (:meth:`torques_nm`, :meth:`apply`, :meth:`advance`) holding a
+    command of (n, 2) regulator voltages [V]; ``contraction_pct`` (n, 2) [%] is each muscle's
+    contraction after the last step, ``rest_pct`` [%] where a reset puts both muscles.
+    """
+
+    rest_pct: float
+
+    def __init__(self, muscle: MuscleConfig, pairs: AntagonisticPairs, radius_m: np.ndarray):
+        self.cfg, self.pairs, self.radius_m = muscle, pairs, radius_m
+        self.lever = pairs.force_scale * radius_m  # k r [m]: torque per newton of one muscle
+        self.contraction_pct = np.zeros((len(radius_m), 2))
+
+    def reset(self) -> None:
+        """Both muscles of every pair at ``rest_pct`` (the pairs' own state: AntagonisticPairs.reset)."""
+        self.contraction_pct[:] = self.rest_pct
+
+    def torques_nm(self, voltage_v: np.ndarray, angle_rad: np.ndarray, velocity_rad_s: np.ndarray,
+                   dt_s: float) -> np.ndarray:
+        """Advance the muscles by dt_s [s]; the (n,) joint torques [N m]."""
+        raise NotImplementedError
+
+    def apply(self, voltage_v: np.ndarray, model, data, qpos_idx: np.ndarray, qvel_idx: np.ndarray,
+              dt_s: float) -> None:
+        """Advance the muscles by dt_s [s] and set MuJoCo's joint actuators for the next dt_s."""
+        raise NotImplementedError
+
+    def advance(self, voltage_v: np.ndarray, model, data, qpos_idx: np.ndarray, qvel_idx: np.ndarray, dt_s: float,
+                muscle_steps: int, physics_steps: int) -> None:
+        """``muscle_steps`` times: :meth:`apply` for dt_s, then ``physics_steps`` MuJoCo steps."""
+        from mujoco import mj_step
+
+        for _ in range(muscle_steps):
+            self.apply(voltage_v, model, data, qpos_idx, qvel_idx, dt_s)
+            mj_step(model, data, physics_steps)
+
+    def static_contraction_pct(self, angle_rad: np.ndarray, pressure_kpa: np.ndarray) -> np.ndarray:
+        """Both muscles' contraction [%], (..., n, 2), at rest at these angles [rad] and pressures [kPa]."""
+        raise NotImplementedError
+
+    def static_torque_nm(self, angle_rad: np.ndarray, pressure_kpa: np.ndarray) -> np.ndarray:
+        """Torque k (F1 - F2) r [N m] at rest, no state: angles (..., n) [rad], pressures (..., n, 2)
+        [kPa, capped at the muscle's max] -> (..., n); forces never negative."""
+        angle = np.asarray(angle_rad, float)
+        pressure = np.minimum(np.asarray(pressure_kpa, float), self.cfg.max_pressure_kpa)
+        c, pressure = np.broadcast_arrays(self.static_contraction_pct(angle, pressure), pressure)
+        force = np.maximum(self.pairs.law.signed_force_n(c, pressure), 0.0)
+        return (force[..., 0] - force[..., 1]) * self.lever
+
+
+class ThesisCoupling(Coupling):
+    """The thesis' coupling (§8.3): each muscle's contraction is its own dynamic state.
+
+    D x' + S x = Fce - FL (:class:`pamrun.muscle.FirstOrderPairDynamics`), starting from
+    ``rest_contraction_pct`` (14.06 %, the zero-force contraction at 176.4 kPa, §10.1); the
+    joint angle does not feed back into it. T = k (F1 - F2) r [N m], held over the muscle
+    step: a pair gives torque only while its contractions move after a pressure change
+    (~20 ms), then ~0. Its static torque is that burst, the same at every angle.
+    """
+
+    def __init__(self, muscle: MuscleConfig, pairs: AntagonisticPairs, radius_m: np.ndarray):
+        super().__init__(muscle, pairs, radius_m)
+        self.rest_pct = muscle.rest_contraction_pct
+
+    def torques_nm(self, voltage_v: np.ndarray, angle_rad: np.ndarray, velocity_rad_s: np.ndarray,
+                   dt_s: float) -> np.ndarray:
+        pairs = self.pairs
+        changed = pairs.regulator.step(voltage_v, dt_s)
+        pairs.dynamics.step(pairs.pressure_kpa, dt_s, changed)
+        self.contraction_pct = pairs.dynamics.contraction_pct()
+        return pairs.torque_nm(self.radius_m)
+
+    def apply(self, voltage_v: np.ndarray, model, data, qpos_idx: np.ndarray, qvel_idx: np.ndarray,
+              dt_s: float) -> None:
+        """The torque, held for dt_s (plain motors: no bias)."""
+        data.ctrl[:] = self.torques_nm(voltage_v, data.qpos[qpos_idx], data.qvel[qvel_idx], dt_s)
+
+    def static_contraction_pct(self, angle_rad: np.ndarray, pressure_kpa: np.ndarray) -> np.ndarray:
+        """Both muscles still at ``rest_contraction_pct``, whatever the angle (the burst)."""
+        return np.full(np.broadcast_shapes(angle_rad.shape + (2,), pressure_kpa.shape), self.rest_pct)
+
+
+class KinematicCoupling(Coupling):
+    """Contraction follows the joint through its pulley (physically consistent; numpy reference).
+
+    c1,2 = c_rest +- 100 r (theta - theta_n) / L0 [%] (c_rest: ``kinematic_rest_contraction_pct``,
+    theta_n: ``neutral_deg``), so co-contraction stiffens the joint; both dampers D = tau S
+    (thesis §8.3) act on the joint velocity: T = k (F1 - F2) r - k (D1 + D2) r^2 theta' [N m].
+    Pressure follows the command through the regulator (and its lag).
+    """
+
+    def __init__(self, muscle: MuscleConfig, pairs: AntagonisticPairs, radius_m: np.ndarray):
+        super().__init__(muscle, pairs, radius_m)
+        self.rest_pct = muscle.kinematic_rest_contraction_pct
+        self.pct_per_rad = 100.0 * radius_m / muscle.nominal_length_m  # 100 r / L0 [%/rad]
+        self.neutral = neutral_angles_rad(muscle)  # theta_n [rad]
+        self.coef: np.ndarray | None = None  # force law at the current pressures (None: recompute)
+        self.damping = np.zeros(len(radius_m))  # k (D1 + D2) r^2 [N m s/rad]
+
+    def reset(self) -> None:
+        super().reset()
+        self.coef = None
+
+    def torque_and_stiffness(self, voltage_v: np.ndarray, angle_rad: np.ndarray,
+                             dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Step the regulator by dt_s [s]; the pairs' torque k (F1 - F2) r [N m] at ``angle_rad``
+        and its stiffness -dT/dtheta [N m/rad] (a slack muscle adds none)."""
+        pairs = self.pairs
+        changed = pairs.regulator.step(voltage_v, dt_s)
+        if changed or self.coef is None:
+            pressure = pairs.pressure_kpa
+            self.coef = pairs.law.at_pressure(pressure)
+            # Both sides' dampers act on the joint: k (D1 + D2) r^2 [N m s/rad], D = tau S.
+            d_n_s_per_m = self.cfg.tau_s * pairs.dynamics.spring(pressure).sum(axis=1) * pairs.dynamics.length_scale
+            self.damping = d_n_s_per_m * self.lever * self.radius_m
+        shift = self.pct_per_rad * (angle_rad - self.neutral)
+        c = self.contraction_pct
+        c[:, 0] = self.rest_pct + shift
+        c[:, 1] = self.rest_pct - shift
+        force, slope = pairs.law.force_and_slope(self.coef, c)
+        slope = np.where(force > 0.0, slope, 0.0)  # dF/dc [N/%], 0 where slack
+        force = np.maximum(force, 0.0)
+        torque = (force[:, 0] - force[:, 1]) * self.lever
+        stiffness = -(slope[:, 0] + slope[:, 1]) * self.pct_per_rad * self.lever
+        return torque, stiffness
+
+    def torques_nm(self, voltage_v: np.ndarray, angle_rad: np.ndarray, velocity_rad_s: np.ndarray,
+                   dt_s: float) -> np.ndarray:
+        return self.torque_and_stiffness(voltage_v, angle_rad, dt_s)[0] - self.damping * velocity_rad_s
+
+    def apply(self, voltage_v: np.ndarray, model, data, qpos_idx: np.ndarray, qvel_idx: np.ndarray,
+              dt_s: float) -> None:
+        """The pair's torque linearised at the current angle theta0, T0 - K (theta - theta0) - D theta',
+        through the actuators' affine bias (ctrl = T0 + K theta0, biasprm[:, 1:3] = -K, -D)."""
+        angle = data.qpos[qpos_idx]
+        torque, stiffness = self.torque_and_stiffness(voltage_v, angle, dt_s)
+        data.ctrl[:] = torque + stiffness * angle
+        model.actuator_biasprm[:, 1] = -stiffness
+        model.actuator_biasprm[:, 2] = -self.damping
+
+    def static_contraction_pct(self, angle_rad: np.ndarray, pressure_kpa: np.ndarray) -> np.ndarray:
+        shift = self.pct_per_rad * (angle_rad - self.neutral)
+        return np.stack([self.rest_pct + shift, self.rest_pct - shift], axis=-1)
+
+
+class CompiledKinematicCoupling(KinematicCoupling):
+    """:class:`KinematicCoupling` stepped by one compiled call per muscle step
+    (:class:`pamrun.kernels.CompiledStep`); the numpy reference's results to float rounding."""
+
+    def __init__(self, muscle: MuscleConfig, pairs: AntagonisticPairs, radius_m: np.ndarray):
+        from pamrun.kernels import CompiledStep
+
+        super().__init__(muscle, pairs, radius_m)
+        self.compiled = CompiledStep(self)  # writes this coupling's contraction_pct and damping in place
+
+    def reset(self) -> None:
+        super().reset()
+        self.compiled.stale = True
+
+    def torque_and_stiffness(self, voltage_v: np.ndarray, angle_rad: np.ndarray,
+                             dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+        return self.compiled.step(voltage_v, angle_rad, dt_s)
+
+    def apply(self, voltage_v: np.ndarray, model, data, qpos_idx: np.ndarray, qvel_idx: np.ndarray,
+              dt_s: float) -> None:
+        self.compiled.apply(voltage_v, model, data, qpos_idx, dt_s)
+
+    def advance(self, voltage_v: np.ndarray, model, data, qpos_idx: np.ndarray, qvel_idx: np.ndarray, dt_s: float,
+                muscle_steps: int, physics_steps: int) -> None:
+        self.compiled.advance(voltage_v, model, data, qpos_idx, dt_s, muscle_steps, physics_steps)
+
+
+def make_coupling(muscle: MuscleConfig, pairs: AntagonisticPairs, radius_m: np.ndarray) -> Coupling:
+    """The coupling ``muscle.coupling`` names, stepped as ``muscle.kernel`` says (thesis: numpy only)."""
+    if muscle.coupling == "thesis":
+        return ThesisCoupling(muscle, pairs, radius_m)
+    kinematic = CompiledKinematicCoupling if muscle.kernel == "numba" else KinematicCoupling
+    return kinematic(muscle, pairs, radius_m)
+
+
+class MuscleDrive:
+    """All 20 muscles of the robot, stepped together: actions -> voltages -> the coupling.
+
+    ``coupling`` (:func:`make_coupling`) does the physics; the state lives where the numpy
+    code keeps it (``pairs.regulator.pressure_kpa``, ``contraction_pct``, ``voltage_v``)
+    whichever kernel steps it.
     """
 
     def __init__(self, muscle: MuscleConfig, body: BodyConfig):
@@ -106,73 +293,21 @@ class MuscleDrive:
         self.radius_m = pulley_radii_m(muscle, body)
         self.force_scale = force_scales(muscle)
         self.n_actions = n_actions(muscle)
-        n = len(self.radius_m)
-        self.pairs = AntagonisticPairs(muscle, n, self.force_scale)
+        self.pairs = AntagonisticPairs(muscle, len(self.radius_m), self.force_scale)
         self.voltage_v = self.voltages_v(np.zeros(self.n_actions))
-        self._pct_per_rad = 100.0 * self.radius_m / muscle.nominal_length_m
-        self._neutral = neutral_angles_rad(muscle)
-        self._lever = self.force_scale * self.radius_m  # k r [m]
-        self._contraction = np.zeros((n, 2))
-        self._coef: np.ndarray | None = None
-        self._damping = np.zeros(n)
-        self._kernel = None
-        if self.kinematic and muscle.kernel == "numba":
-            self._init_kernel()
+        self.coupling = make_coupling(muscle, self.pairs, self.radius_m)
 
-    def _init_kernel(self) -> None:
-        """Constants and buffers of the compiled step (pamrun.kernels), from this drive's own."""
-        from pamrun import kernels as K
-
-        pairs, reg, n = self.pairs, self.cfg.regulator, len(self.radius_m)
-        params = np.zeros(K.N_PARAMS)
-        for index, value in ((K.P_VMIN, reg.min_voltage_v), (K.P_VMAX, reg.max_voltage_v),
-                             (K.P_GAIN, reg.gain_kpa_per_v), (K.P_PMIN, reg.min_pressure_kpa),
-                             (K.P_PMAX, reg.max_pressure_kpa), (K.P_LAG, reg.lag_s),
-                             (K.P_MUSCLE_MAX, self.cfg.max_pressure_kpa), (K.P_LAW_MAX, pairs.law.max_pressure_kpa),
-                             (K.P_REST, self.cfg.kinematic_rest_contraction_pct), (K.P_TAU, self.cfg.tau_s),
-                             (K.P_LENGTH_SCALE, pairs.dynamics.length_scale)):
-            params[index] = value
-        self._params = params
-        self._law = np.ascontiguousarray(pairs.law.coefficients, dtype=float)
-        self._edges = np.ascontiguousarray(pairs.dynamics.spring.edges_kpa, dtype=float)
-        self._springs = np.ascontiguousarray(pairs.dynamics.spring.values_n_per_m, dtype=float)
-        joint = np.empty((4, n))
-        joint[K.J_PCT_PER_RAD], joint[K.J_NEUTRAL] = self._pct_per_rad, self._neutral
-        joint[K.J_LEVER], joint[K.J_RADIUS] = self._lever, self.radius_m
-        self._joint = joint
-        self._coef_buf = np.zeros((6, n, 2))
-        self._angle, self._torque, self._stiffness = np.zeros(n), np.zeros(n), np.zeros(n)
-        self._lag_dt: float | None = None
-        self._lag_factor = 0.0
-        self._kernel = K
-
-    def _kernel_inputs(self, dt_s: float) -> tuple:
-        """The regulator's side of a compiled step: (voltage, new voltage?, no coefficients yet?,
-        lag factor), keeping Regulator.step's bookkeeping (a new voltage array -> a new target)."""
-        reg = self.pairs.regulator
-        voltage = self.voltage_v
-        new = voltage is not reg._voltage
-        if new:
-            if np.shape(voltage) != self._contraction.shape:
-                raise ValueError(f"regulator voltages must have shape {self._contraction.shape}, "
-                                 f"got {np.shape(voltage)}")
-            reg._voltage = voltage
-            if not isinstance(reg._target, np.ndarray) or reg._target.shape != voltage.shape:
-                reg._target = np.zeros(voltage.shape)
-        if dt_s != self._lag_dt:
-            lag = self.cfg.regulator.lag_s
-            self._lag_factor = float(-np.expm1(-dt_s / lag)) if lag > 0 else 0.0
-            self._lag_dt = dt_s
-        return voltage, new, self._coef is None, self._lag_factor
+    @property
+    def compiled(self) -> bool:
+        """Whether the compiled kernel steps the muscles (``kernel=numba`` and the kinematic coupling)."""
+        return isinstance(self.coupling, CompiledKinematicCoupling)
 
     def reset(self) -> None:
-        """Both muscles of every pair at V0's pressure and their rest contraction."""
+        """Both muscles of every pair at V0's pressure and the coupling's rest contraction."""
         v0_kpa = self.pairs.regulator.target_pressure_kpa(np.full((1, 2), self.cfg.v0_v))[0, 0]
-        rest = self.cfg.kinematic_rest_contraction_pct if self.kinematic else self.cfg.rest_contraction_pct
-        self.pairs.reset(v0_kpa, rest)
+        self.pairs.reset(v0_kpa, self.coupling.rest_pct)
         self.voltage_v = self.voltages_v(np.zeros(self.n_actions))
-        self._contraction[:] = rest
-        self._coef = None
+        self.coupling.reset()
 
     def voltages_v(self, action: np.ndarray) -> np.ndarray:
         """Actions in [-1, 1] -> (10, 2) regulator voltages (see ``muscle.command``).
@@ -204,22 +339,7 @@ class MuscleDrive:
         muscle step instead is unstable once K / inertia is large (a stiff ankle pair on
         a light foot), since the muscle spring would act only every muscle step.
         """
-        if self._kernel is not None:
-            reg = self.pairs.regulator
-            self._kernel.muscle_apply(*self._kernel_inputs(dt_s), self._params, reg._target, reg.pressure_kpa,
-                                      self._law, self._edges, self._springs, self._joint, data.qpos, qpos_idx,
-                                      self._angle, self._contraction, self._coef_buf, self._damping, self._torque,
-                                      self._stiffness, data.ctrl, model.actuator_biasprm)
-            self._coef = self._coef_buf
-            return
-        angle, velocity = data.qpos[qpos_idx], data.qvel[qvel_idx]
-        if not self.kinematic:
-            data.ctrl[:] = self.torques_nm(angle, velocity, dt_s)
-            return
-        torque, stiffness = self._kinematic_torque(angle, dt_s)
-        data.ctrl[:] = torque + stiffness * angle
-        model.actuator_biasprm[:, 1] = -stiffness
-        model.actuator_biasprm[:, 2] = -self._damping
+        self.coupling.apply(self.voltage_v, model, data, qpos_idx, qvel_idx, dt_s)
 
     def advance(self, model, data, qpos_idx: np.ndarray, qvel_idx: np.ndarray, dt_s: float, muscle_steps: int,
                 physics_steps: int) -> None:
@@ -228,66 +348,11 @@ class MuscleDrive:
         The same as that loop, call for call; with the compiled kernel the arguments are
         gathered once, so between MuJoCo steps there is one kernel call and no other Python.
         """
-        from mujoco import mj_step
-
-        if self._kernel is None:
-            for _ in range(muscle_steps):
-                self.apply(model, data, qpos_idx, qvel_idx, dt_s)
-                mj_step(model, data, physics_steps)
-            return
-        voltage, new, stale, lag_factor = self._kernel_inputs(dt_s)
-        reg, kernel = self.pairs.regulator, self._kernel.muscle_apply
-        state = (self._params, reg._target, reg.pressure_kpa, self._law, self._edges, self._springs, self._joint,
-                 data.qpos, qpos_idx, self._angle, self._contraction, self._coef_buf, self._damping, self._torque,
-                 self._stiffness, data.ctrl, model.actuator_biasprm)
-        for k in range(muscle_steps):
-            # after the first call the voltage is the regulator's and the coefficients exist,
-            # as apply() would find them
-            kernel(voltage, new and k == 0, stale and k == 0, lag_factor, *state)
-            self._coef = self._coef_buf
-            mj_step(model, data, physics_steps)
+        self.coupling.advance(self.voltage_v, model, data, qpos_idx, qvel_idx, dt_s, muscle_steps, physics_steps)
 
     def torques_nm(self, angle_rad: np.ndarray, velocity_rad_s: np.ndarray, dt_s: float) -> np.ndarray:
         """Advance the muscles by dt_s and return the (10,) joint torques [N m]."""
-        pairs = self.pairs
-        if not self.kinematic:
-            changed = pairs.regulator.step(self.voltage_v, dt_s)
-            pairs.dynamics.step(pairs.pressure_kpa, dt_s, changed)
-            self._contraction = pairs.dynamics.contraction_pct()
-            return pairs.torque_nm(self.radius_m)
-        return self._kinematic_torque(angle_rad, dt_s)[0] - self._damping * velocity_rad_s
-
-    def _kinematic_torque(self, angle_rad: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """Step the regulator; the pairs' torque k (F1 - F2) r [N m] at ``angle_rad`` and its
-        stiffness -dT/dtheta [N m/rad] (a slack muscle adds none)."""
-        pairs = self.pairs
-        if self._kernel is not None:
-            angle = np.asarray(angle_rad, dtype=float)
-            if angle.shape != self._angle.shape:
-                raise ValueError(f"joint angles must have shape {self._angle.shape}, got {angle.shape}")
-            reg = pairs.regulator
-            self._kernel.muscle_step(*self._kernel_inputs(dt_s), self._params, reg._target, reg.pressure_kpa,
-                                     self._law, self._edges, self._springs, self._joint, angle, self._contraction,
-                                     self._coef_buf, self._damping, self._torque, self._stiffness)
-            self._coef = self._coef_buf
-            return self._torque.copy(), self._stiffness.copy()
-        changed = pairs.regulator.step(self.voltage_v, dt_s)
-        if changed or self._coef is None:
-            pressure = pairs.pressure_kpa
-            self._coef = pairs.law.at_pressure(pressure)
-            # Both sides' dampers act on the joint: k (D1 + D2) r^2 [N m s/rad], D = tau S.
-            d_n_s_per_m = self.cfg.tau_s * pairs.dynamics.spring(pressure).sum(axis=1) * pairs.dynamics.length_scale
-            self._damping = d_n_s_per_m * self._lever * self.radius_m
-        shift = self._pct_per_rad * (angle_rad - self._neutral)
-        c = self._contraction
-        c[:, 0] = self.cfg.kinematic_rest_contraction_pct + shift
-        c[:, 1] = self.cfg.kinematic_rest_contraction_pct - shift
-        force, slope = pairs.law.force_and_slope(self._coef, c)
-        slope = np.where(force > 0.0, slope, 0.0)  # dF/dc [N/%], 0 where slack
-        force = np.maximum(force, 0.0)
-        torque = (force[:, 0] - force[:, 1]) * self._lever
-        stiffness = -(slope[:, 0] + slope[:, 1]) * self._pct_per_rad * self._lever
-        return torque, stiffness
+        return self.coupling.torques_nm(self.voltage_v, angle_rad, velocity_rad_s, dt_s)
 
     def static_torque_nm(self, angle_rad: np.ndarray, pressure_kpa: np.ndarray) -> np.ndarray:
         """Torque [N m] at rest, no state: angles (..., 10), pressures (..., 10, 2) -> (..., 10).
@@ -296,17 +361,7 @@ class MuscleDrive:
         right after the pressures are set, both muscles still at ``rest_contraction_pct``,
         which does not depend on the angle (and decays to ~0 within ~20 ms).
         """
-        angle = np.asarray(angle_rad, float)
-        pressure = np.minimum(np.asarray(pressure_kpa, float), self.cfg.max_pressure_kpa)
-        if self.kinematic:
-            shift = self._pct_per_rad * (angle - self._neutral)
-            rest = self.cfg.kinematic_rest_contraction_pct
-            c = np.stack([rest + shift, rest - shift], axis=-1)
-        else:
-            c = np.full(np.broadcast_shapes(angle.shape + (2,), pressure.shape), self.cfg.rest_contraction_pct)
-        c, pressure = np.broadcast_arrays(c, pressure)
-        force = np.maximum(self.pairs.law.signed_force_n(c, pressure), 0.0)
-        return (force[..., 0] - force[..., 1]) * self._lever
+        return self.coupling.static_torque_nm(angle_rad, pressure_kpa)
 
     @property
     def pressure_kpa(self) -> np.ndarray:
@@ -314,4 +369,4 @@ class MuscleDrive:
 
     @property
     def contraction_pct(self) -> np.ndarray:
-        return self._contraction
+        return self.coupling.contraction_pct

@@ -46,11 +46,10 @@ import numpy as np
 os.environ.setdefault("MUJOCO_GL", "egl")
 import mujoco  # noqa: E402
 
-from pamrun.config import BodyConfig  # noqa: E402
+from pamrun.config import LEG_JOINTS, BodyConfig  # noqa: E402  (LEG_JOINTS: one leg's hinges, their one home)
 
-LEG_JOINTS = ("hip_pitch", "hip_roll", "knee", "ankle_pitch", "ankle_roll")
 SIDES = ("right", "left")
-JOINTS = tuple(f"{side}_{joint}" for side in SIDES for joint in LEG_JOINTS)
+JOINTS = tuple(f"{side}_{joint}" for side in SIDES for joint in LEG_JOINTS)  # every hinge, right leg first
 TORSO = "torso"
 FEET = ("right_foot", "left_foot")
 FOOT_SENSORS = ("right_foot_force", "left_foot_force")
@@ -59,6 +58,7 @@ GRAVITY = 9.81
 IMPEDANCE = 0.95  # constant solimp d of contacts and limits (MuJoCo's default range is 0.9-0.95)
 SPHERE_RADIUS_RATIO = 0.006  # contact sphere radius / H (about 1 cm)
 FIXED_TORSO_LIFT_M = 0.3  # how far the torso is raised for open-loop tests
+_NO_COLLIDE = {"contype": 0, "conaffinity": 0}  # visual geoms: only the foot spheres collide
 
 
 def anthropometry(cfg: BodyConfig) -> dict[str, dict[str, float]]:
@@ -164,10 +164,59 @@ def _add_hinge(body, name: str, axis: list[float], limits_deg: tuple[float, floa
     )
 
 
-def build_spec(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = False) -> mujoco.MjSpec:
-    """The robot as an MjSpec (no XML by hand). ``fixed_torso`` welds the torso in the air."""
+def _add_leg(torso, side: str, sign: float, cfg: BodyConfig) -> None:
+    """One leg under the torso (``sign``: -1 right, +1 left): thigh (hip pitch and roll), shin
+    (knee), foot (ankle pitch and roll), their visual boxes, the sole's touch site and the four
+    contact spheres at the sole's corners (§8.1), sizes from :func:`anthropometry`."""
     seg = anthropometry(cfg)
     foot, lower, upper, pelvis = seg["foot"], seg["lower_leg"], seg["upper_leg"], seg["pelvis"]
+    r_sphere = SPHERE_RADIUS_RATIO * cfg.height_m
+    lim = joint_limits_deg(cfg, side)
+    thigh = torso.add_body(name=f"{side}_thigh", pos=[0, sign * pelvis["hip_width_m"] / 2, -pelvis["z_m"] / 2],
+                           mass=upper["mass_kg"], ipos=[0, 0, -upper["z_m"] / 2 + upper["com_m"]],
+                           inertia=_inertia(upper["mass_kg"], upper["inertia_kgm2"], upper["x_m"], upper["y_m"]))
+    _add_hinge(thigh, f"{side}_hip_pitch", [0, 1, 0], lim["hip_pitch"], cfg)
+    _add_hinge(thigh, f"{side}_hip_roll", [1, 0, 0], lim["hip_roll"], cfg)
+    thigh.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, pos=[0, 0, -upper["z_m"] / 2], mass=0,
+                   size=[upper["x_m"] / 2, upper["y_m"] / 2, upper["z_m"] / 2], rgba=[0.8, 0.5, 0.3, 1],
+                   **_NO_COLLIDE)
+    shin = thigh.add_body(name=f"{side}_shin", pos=[0, 0, -upper["z_m"]], mass=lower["mass_kg"],
+                          ipos=[0, 0, -lower["z_m"] / 2 + lower["com_m"]],
+                          inertia=_inertia(lower["mass_kg"], lower["inertia_kgm2"], lower["x_m"], lower["y_m"]))
+    _add_hinge(shin, f"{side}_knee", [0, 1, 0], lim["knee"], cfg)
+    shin.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, pos=[0, 0, -lower["z_m"] / 2], mass=0,
+                  size=[lower["x_m"] / 2, lower["y_m"] / 2, lower["z_m"] / 2], rgba=[0.85, 0.6, 0.4, 1],
+                  **_NO_COLLIDE)
+    foot_centre = [foot["offset_m"], 0, -foot["z_m"] / 2]
+    foot_body = shin.add_body(name=f"{side}_foot", pos=[0, 0, -lower["z_m"]], mass=foot["mass_kg"],
+                              ipos=foot_centre,
+                              inertia=[foot["inertia_kgm2"], foot["inertia_kgm2"],
+                                       foot["mass_kg"] * (foot["x_m"] ** 2 + foot["y_m"] ** 2) / 12])
+    _add_hinge(foot_body, f"{side}_ankle_pitch", [0, 1, 0], lim["ankle_pitch"], cfg)
+    _add_hinge(foot_body, f"{side}_ankle_roll", [1, 0, 0], lim["ankle_roll"], cfg)
+    foot_body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, pos=foot_centre, mass=0,
+                       size=[foot["x_m"] / 2, foot["y_m"] / 2, foot["z_m"] / 2], rgba=[0.3, 0.3, 0.3, 1],
+                       **_NO_COLLIDE)
+    # Touch sensor: sum of normal contact forces [N] in a box around the sole.
+    foot_body.add_site(name=f"{side}_sole", type=mujoco.mjtGeom.mjGEOM_BOX, pos=foot_centre,
+                       size=[foot["x_m"] / 2 + r_sphere, foot["y_m"] / 2 + r_sphere, foot["z_m"] / 2 + 0.02],
+                       rgba=[0, 0, 0, 0])
+    for cx in (-1, 1):
+        for cy in (-1, 1):
+            foot_body.add_geom(
+                name=f"{side}_contact_{'front' if cx > 0 else 'back'}_{'left' if cy > 0 else 'right'}",
+                type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[r_sphere, 0, 0], mass=0,
+                pos=[foot["offset_m"] + cx * (foot["x_m"] / 2 - r_sphere), cy * (foot["y_m"] / 2 - r_sphere),
+                     -foot["z_m"] + r_sphere],
+                contype=2, conaffinity=1, condim=3, rgba=[0.9, 0.2, 0.2, 1],
+                friction=[cfg.friction_static, 0.005, 0.0001],
+                solref=list(contact_solref(cfg)), solimp=[IMPEDANCE, IMPEDANCE, 0.001, 0.5, 2.0],
+            )
+
+
+def build_spec(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = False) -> mujoco.MjSpec:
+    """The robot as an MjSpec (no XML by hand). ``fixed_torso`` welds the torso in the air."""
+    pelvis = anthropometry(cfg)["pelvis"]
     spec = mujoco.MjSpec()
     spec.modelname = "pamwalker"
     spec.compiler.degree = False  # every angle below is in radians
@@ -184,7 +233,8 @@ def build_spec(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = F
     mat = spec.add_material(name="grid", texrepeat=[8, 8], reflectance=0.1)
     mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = tex.name
     world = spec.worldbody
-    world.add_light(pos=[0, 0, 4], dir=[0, 0, -1], type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, diffuse=[0.8, 0.8, 0.8])
+    world.add_light(pos=[0, 0, 4], dir=[0, 0, -1], type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
+                    diffuse=[0.8, 0.8, 0.8])
     world.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05], material="grid",
                    contype=1, conaffinity=1, friction=[cfg.friction_static, 0.005, 0.0001])
 
@@ -195,9 +245,8 @@ def build_spec(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = F
                            inertia=_box_inertia(pelvis["mass_kg"], pelvis["x_m"], pelvis["y_m"], pelvis["z_m"]))
     if not fixed_torso:
         torso.add_freejoint(name="root")
-    no_collide = {"contype": 0, "conaffinity": 0}
     torso.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[pelvis["x_m"] / 2, pelvis["y_m"] / 2, pelvis["z_m"] / 2],
-                   rgba=[0.25, 0.35, 0.6, 1], mass=0, **no_collide)
+                   rgba=[0.25, 0.35, 0.6, 1], mass=0, **_NO_COLLIDE)
 
     # Tracking camera, three-quarter view from the front right, aimed at mid-leg height.
     scale = cfg.height_m / 1.80
@@ -210,49 +259,8 @@ def build_spec(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = F
     torso.add_camera(name=CAMERA, pos=offset.tolist(), mode=mujoco.mjtCamLight.mjCAMLIGHT_TRACKCOM,
                      xyaxes=[*right, *up], fovy=45)
 
-    r_sphere = SPHERE_RADIUS_RATIO * cfg.height_m
     for side, sign in (("right", -1.0), ("left", 1.0)):
-        lim = joint_limits_deg(cfg, side)
-        thigh = torso.add_body(name=f"{side}_thigh", pos=[0, sign * pelvis["hip_width_m"] / 2, -pelvis["z_m"] / 2],
-                               mass=upper["mass_kg"], ipos=[0, 0, -upper["z_m"] / 2 + upper["com_m"]],
-                               inertia=_inertia(upper["mass_kg"], upper["inertia_kgm2"], upper["x_m"], upper["y_m"]))
-        _add_hinge(thigh, f"{side}_hip_pitch", [0, 1, 0], lim["hip_pitch"], cfg)
-        _add_hinge(thigh, f"{side}_hip_roll", [1, 0, 0], lim["hip_roll"], cfg)
-        thigh.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, pos=[0, 0, -upper["z_m"] / 2], mass=0,
-                       size=[upper["x_m"] / 2, upper["y_m"] / 2, upper["z_m"] / 2], rgba=[0.8, 0.5, 0.3, 1],
-                       **no_collide)
-        shin = thigh.add_body(name=f"{side}_shin", pos=[0, 0, -upper["z_m"]], mass=lower["mass_kg"],
-                              ipos=[0, 0, -lower["z_m"] / 2 + lower["com_m"]],
-                              inertia=_inertia(lower["mass_kg"], lower["inertia_kgm2"], lower["x_m"], lower["y_m"]))
-        _add_hinge(shin, f"{side}_knee", [0, 1, 0], lim["knee"], cfg)
-        shin.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, pos=[0, 0, -lower["z_m"] / 2], mass=0,
-                      size=[lower["x_m"] / 2, lower["y_m"] / 2, lower["z_m"] / 2], rgba=[0.85, 0.6, 0.4, 1],
-                      **no_collide)
-        foot_centre = [foot["offset_m"], 0, -foot["z_m"] / 2]
-        foot_body = shin.add_body(name=f"{side}_foot", pos=[0, 0, -lower["z_m"]], mass=foot["mass_kg"],
-                                  ipos=foot_centre,
-                                  inertia=[foot["inertia_kgm2"], foot["inertia_kgm2"],
-                                           foot["mass_kg"] * (foot["x_m"] ** 2 + foot["y_m"] ** 2) / 12])
-        _add_hinge(foot_body, f"{side}_ankle_pitch", [0, 1, 0], lim["ankle_pitch"], cfg)
-        _add_hinge(foot_body, f"{side}_ankle_roll", [1, 0, 0], lim["ankle_roll"], cfg)
-        foot_body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, pos=foot_centre, mass=0,
-                           size=[foot["x_m"] / 2, foot["y_m"] / 2, foot["z_m"] / 2], rgba=[0.3, 0.3, 0.3, 1],
-                           **no_collide)
-        # Touch sensor: sum of normal contact forces [N] in a box around the sole.
-        foot_body.add_site(name=f"{side}_sole", type=mujoco.mjtGeom.mjGEOM_BOX, pos=foot_centre,
-                           size=[foot["x_m"] / 2 + r_sphere, foot["y_m"] / 2 + r_sphere, foot["z_m"] / 2 + 0.02],
-                           rgba=[0, 0, 0, 0])
-        for cx in (-1, 1):
-            for cy in (-1, 1):
-                foot_body.add_geom(
-                    name=f"{side}_contact_{'front' if cx > 0 else 'back'}_{'left' if cy > 0 else 'right'}",
-                    type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[r_sphere, 0, 0], mass=0,
-                    pos=[foot["offset_m"] + cx * (foot["x_m"] / 2 - r_sphere), cy * (foot["y_m"] / 2 - r_sphere),
-                         -foot["z_m"] + r_sphere],
-                    contype=2, conaffinity=1, condim=3, rgba=[0.9, 0.2, 0.2, 1],
-                    friction=[cfg.friction_static, 0.005, 0.0001],
-                    solref=list(contact_solref(cfg)), solimp=[IMPEDANCE, IMPEDANCE, 0.001, 0.5, 2.0],
-                )
+        _add_leg(torso, side, sign, cfg)
     for side in SIDES:
         spec.add_sensor(name=f"{side}_foot_force", type=mujoco.mjtSensor.mjSENS_TOUCH,
                         objtype=mujoco.mjtObj.mjOBJ_SITE, objname=f"{side}_sole")

@@ -32,8 +32,9 @@ from typing import Any
 
 import numpy as np
 
-from pamrun.config import BodyConfig, MuscleConfig
+from pamrun.config import LEG_JOINTS, BodyConfig, MuscleConfig
 
+# Per-joint tables below are keyed by pamrun.config.LEG_JOINTS, in its order (tests/test_capacity.py checks it).
 # Peak joint moments of human walking at natural cadence, N m per kg of body mass (Winter,
 # "Biomechanics and Motor Control of Human Movement", 4th ed., 2009, gait data; sagittal
 # peaks as collected in THESIS.md §8; frontal: hip abductor and ankle invertor/evertor
@@ -47,7 +48,8 @@ WALKING_RANGE_DEG = {"hip_pitch": (-30.0, 20.0), "hip_roll": (-10.0, 10.0), "kne
 LEAN_DEG = 5.0  # a lean to hold while standing (THESIS.md §8: 2, 5 or 10 deg)
 REQUIRED_MARGIN = 1.5  # capacity over walking demand a robot that should learn to walk needs
 STIFFNESS_LEVELS_KPA = (100.0, 200.0, 300.0, 400.0, 600.0, 800.0)
-# Bodies that move with each joint's distal side, i.e. not carried by it (left leg; both legs share).
+# Bodies that move with each joint group's distal side, i.e. not carried by it (left leg; both legs share).
+# A group is the first word of its joints' names: hip (pitch, roll), knee, ankle (pitch, roll).
 _BELOW = {"ankle": ("foot",), "knee": ("shin", "foot"), "hip": ("thigh", "shin", "foot")}
 
 
@@ -73,10 +75,66 @@ def _gravity_loads(body: BodyConfig) -> dict[str, dict[str, float]]:
     return out
 
 
+def _static_torque_nm(drive, j: int, angle: np.ndarray, p1: float, p2: float) -> np.ndarray:
+    """Torque [N m] of joint j over its angles [rad], muscle 1 at p1 and muscle 2 at p2 [kPa]
+    (every other joint at 0; no state, see MuscleDrive.static_torque_nm)."""
+    n = len(drive.radius_m)
+    angles = np.zeros((len(angle), n))
+    angles[:, j] = angle
+    pressure = np.broadcast_to(np.array([p1, p2]), (len(angle), n, 2))
+    return drive.static_torque_nm(angles, pressure)[:, j]
+
+
+def _stiffness_nm_per_rad(drive, j: int, p_kpa: float, step_rad: float = 1e-3) -> float:
+    """-dT/dtheta [N m/rad] of joint j at 0 with both muscles at p_kpa, by central difference."""
+    t = _static_torque_nm(drive, j, np.array([-step_rad, step_rad]), p_kpa, p_kpa)
+    return float(-(t[1] - t[0]) / (2 * step_rad))
+
+
+def _joint_capacity(drive, name: str, limits_rad: np.ndarray, pressures: dict[str, Any], load: dict[str, float],
+                    mass_kg: float, n_angles: int) -> dict[str, Any]:
+    """One left-leg joint's row: envelope over its range, walking and lean demand, stiffness.
+
+    ``pressures``: ``band`` and ``full`` (agonist, antagonist) [kPa] and ``zero`` [kPa]."""
+    from pamrun.body import JOINTS
+
+    muscle = drive.cfg
+    j = JOINTS.index(f"left_{name}")
+    lo, hi = limits_rad[j]
+    angle = np.linspace(lo, hi, n_angles)
+    walk_lo, walk_hi = (math.radians(v) for v in WALKING_RANGE_DEG[name])
+    in_walk = (angle >= walk_lo - 1e-9) & (angle <= walk_hi + 1e-9)
+    envelope = {}
+    for label in ("band", "full"):
+        p_hi, p_lo = pressures[label]
+        plus, minus = _static_torque_nm(drive, j, angle, p_hi, p_lo), _static_torque_nm(drive, j, angle, p_lo, p_hi)
+        envelope[label] = {"plus_nm": plus.round(3).tolist(), "minus_nm": minus.round(3).tolist(),
+                           "walking_min_nm": float(min(plus[in_walk].min(), -minus[in_walk].max()))}
+    walk_demand = WALKING_PEAK_NM_PER_KG[name] * mass_kg
+    gravity_k = load["mass_kg"] * 9.81 * load["height_m"] / 2  # m g h [N m/rad], per leg
+    k_zero = _stiffness_nm_per_rad(drive, j, pressures["zero"])
+    return {
+        "radius_mm": round(float(drive.radius_m[j]) * 1000, 2),
+        "muscles_per_direction": int(getattr(muscle.count, name)),
+        "limits_deg": [round(math.degrees(lo), 3), round(math.degrees(hi), 3)],
+        "walking_range_deg": list(WALKING_RANGE_DEG[name]),
+        "angle_deg": np.degrees(angle).round(3).tolist(),
+        "envelope": envelope,
+        "walking_demand_nm": round(walk_demand, 3),
+        "walking_margin": round(envelope["band"]["walking_min_nm"] / walk_demand, 3),
+        "walking_margin_full": round(envelope["full"]["walking_min_nm"] / walk_demand, 3),
+        "lean_demand_nm": round(gravity_k * math.sin(math.radians(LEAN_DEG)), 3),
+        "stiffness_nm_per_rad": {f"{p:.0f}": round(_stiffness_nm_per_rad(drive, j, p), 2) for p in STIFFNESS_LEVELS_KPA
+                                 if p <= muscle.max_pressure_kpa},
+        "stiffness_zero_action_nm_per_rad": round(k_zero, 2),
+        "gravity_stiffness_nm_per_rad": round(gravity_k, 2),
+        "stiffness_margin": round(k_zero / gravity_k, 3),
+    }
+
+
 def analyse(muscle: MuscleConfig, body: BodyConfig, n_angles: int = 91) -> dict[str, Any]:
     """The capacity table of every joint (see the module docstring); plain data for capacity.json."""
     from pamrun.actuation import MuscleDrive, joint_limits_rad
-    from pamrun.body import JOINTS, LEG_JOINTS
 
     drive = MuscleDrive(muscle, body)
     reg = drive.pairs.regulator
@@ -87,53 +145,10 @@ def analyse(muscle: MuscleConfig, body: BodyConfig, n_angles: int = 91) -> dict[
     loads = _gravity_loads(body)
     mass = loads["robot"]["mass_kg"]
     limits = joint_limits_rad(body)
-    n = len(JOINTS)
-
-    def torque(j: int, angle: np.ndarray, p1: float, p2: float) -> np.ndarray:
-        """Torque at joint j over angles with muscle 1 at p1 and muscle 2 at p2 [kPa]."""
-        angles = np.zeros((len(angle), n))
-        angles[:, j] = angle
-        pressure = np.broadcast_to(np.array([p1, p2]), (len(angle), n, 2))
-        return drive.static_torque_nm(angles, pressure)[:, j]
-
-    def stiffness(j: int, p_kpa: float, step_rad: float = 1e-3) -> float:
-        t = torque(j, np.array([-step_rad, step_rad]), p_kpa, p_kpa)
-        return float(-(t[1] - t[0]) / (2 * step_rad))
-
-    joints = {}
-    for name in LEG_JOINTS:
-        j = JOINTS.index(f"left_{name}")
-        lo, hi = limits[j]
-        angle = np.linspace(lo, hi, n_angles)
-        walk_lo, walk_hi = (math.radians(v) for v in WALKING_RANGE_DEG[name])
-        in_walk = (angle >= walk_lo - 1e-9) & (angle <= walk_hi + 1e-9)
-        envelope = {}
-        for label, (p_hi, p_lo) in (("band", band), ("full", full)):
-            plus, minus = torque(j, angle, p_hi, p_lo), torque(j, angle, p_lo, p_hi)
-            envelope[label] = {"plus_nm": plus.round(3).tolist(), "minus_nm": minus.round(3).tolist(),
-                               "walking_min_nm": float(min(plus[in_walk].min(), -minus[in_walk].max()))}
-        group = "ankle" if name.startswith("ankle") else "knee" if name == "knee" else "hip"
-        load = loads[group]
-        walk_demand = WALKING_PEAK_NM_PER_KG[name] * mass
-        gravity_k = load["mass_kg"] * 9.81 * load["height_m"] / 2  # per leg
-        k_zero = stiffness(j, zero_kpa)
-        joints[name] = {
-            "radius_mm": round(float(drive.radius_m[j]) * 1000, 2),
-            "muscles_per_direction": int(getattr(muscle.count, name)),
-            "limits_deg": [round(math.degrees(lo), 3), round(math.degrees(hi), 3)],
-            "walking_range_deg": list(WALKING_RANGE_DEG[name]),
-            "angle_deg": np.degrees(angle).round(3).tolist(),
-            "envelope": envelope,
-            "walking_demand_nm": round(walk_demand, 3),
-            "walking_margin": round(envelope["band"]["walking_min_nm"] / walk_demand, 3),
-            "walking_margin_full": round(envelope["full"]["walking_min_nm"] / walk_demand, 3),
-            "lean_demand_nm": round(gravity_k * math.sin(math.radians(LEAN_DEG)), 3),
-            "stiffness_nm_per_rad": {f"{p:.0f}": round(stiffness(j, p), 2) for p in STIFFNESS_LEVELS_KPA
-                                     if p <= muscle.max_pressure_kpa},
-            "stiffness_zero_action_nm_per_rad": round(k_zero, 2),
-            "gravity_stiffness_nm_per_rad": round(gravity_k, 2),
-            "stiffness_margin": round(k_zero / gravity_k, 3),
-        }
+    pressures = {"band": band, "full": full, "zero": zero_kpa}
+    # hip, knee or ankle: the group (_BELOW) is the first word of the joint's name
+    joints = {name: _joint_capacity(drive, name, limits, pressures, loads[name.split("_")[0]], mass, n_angles)
+              for name in LEG_JOINTS}
     walks = all(v["walking_margin"] >= REQUIRED_MARGIN for v in joints.values())
     ankle_stiff = joints["ankle_pitch"]["stiffness_margin"] >= 1.0
     return {

@@ -23,9 +23,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-AGENT_GLOB = "agent_ep*.pt"
-LAST = "last.pt"
-BEST_EVAL = "best_eval.pt"  # the best agent by the evaluations during training
+from pamrun.rundir import AGENT_GLOB, BEST_EVAL, CHECKPOINTS, LAST, RunFiles, saved_config  # noqa: F401 (its names)
+
 FORMAT = "pamrun-agent/1"
 # The config sections that define the robot and the task an agent acts in.
 ENV_SECTIONS = ("body", "muscle", "reward", "env")
@@ -56,7 +55,7 @@ class Agent:
     @property
     def run_dir(self) -> Path | None:
         """The training run the file belongs to (``<run>/checkpoints/<file>``), if any."""
-        return self.path.parent.parent if self.path.parent.name == "checkpoints" else None
+        return self.path.parent.parent if self.path.parent.name == CHECKPOINTS else None
 
 
 def agent_record(actor_state: dict, cfg, meta: dict) -> dict:
@@ -94,7 +93,7 @@ def find_checkpoints(spec: str, include_last: bool = True) -> list[Path]:
 
 
 def _in_directory(path: Path, include_last: bool) -> list[Path]:
-    folders = [path / "checkpoints", path] if (path / "checkpoints").is_dir() else [path]
+    folders = [path / CHECKPOINTS, path] if (path / CHECKPOINTS).is_dir() else [path]
     for folder in folders:
         files = sorted(folder.glob(AGENT_GLOB)) + [folder / BEST_EVAL] * (folder / BEST_EVAL).exists() \
             + ([folder / LAST] if include_last and (folder / LAST).exists() else [])
@@ -174,18 +173,16 @@ def save_agent_copy(agent: Agent, path: Path, **extra_meta) -> Path:
 
 def _run_config(path: Path) -> dict[str, dict] | None:
     """ENV_SECTIONS of the run a checkpoint sits in (``<run>/pamrun_config.yaml``), if there."""
-    import yaml
-
-    run_cfg = path.parent.parent / "pamrun_config.yaml"
-    if path.parent.name != "checkpoints" or not run_cfg.exists():
+    run = path.parent.parent
+    if path.parent.name != CHECKPOINTS or not RunFiles(run).config.exists():
         return None
-    data = yaml.safe_load(run_cfg.read_text()) or {}
-    return {k: data[k] for k in ENV_SECTIONS if k in data} or None
+    cfg = saved_config(run)
+    return {k: asdict(getattr(cfg, k)) for k in ENV_SECTIONS}
 
 
 def label_of(path: Path) -> str:
     """``<run dir name>/<stem>`` for files in a run's checkpoints/, else ``<folder>/<stem>``."""
-    owner = path.parent.parent if path.parent.name == "checkpoints" else path.parent
+    owner = path.parent.parent if path.parent.name == CHECKPOINTS else path.parent
     return f"{owner.name}/{path.stem}"
 
 

@@ -34,7 +34,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "body": ("pamrun.lab", "body", "generate the robot: robot.xml, body.json, robot.png (thesis §8.1-8.2)"),
     "openloop": ("pamrun.lab", "openloop", "pressure steps on each joint, torso fixed (thesis §10.2)"),
     "capacity": ("pamrun.lab", "capacity", "muscle torque and stiffness vs standing and walking demand, per joint"),
-    "train": ("pamrun.train", "train", "train DDPG, TD3 or SAC on PamWalker-v0 with TorchRL (thesis §9)"),
+    "train": ("pamrun.train", "main", "train DDPG, TD3 or SAC on PamWalker-v0 with TorchRL (thesis §9)"),
     "eval": ("pamrun.evaluate", "evaluate", "test saved agents in parallel, rank them, pick the best: ckpt=<path>"),
     "export": ("pamrun.export", "export", "write an agent's policy as ONNX or TorchScript with its metadata: ckpt=<file>"),
     "sweep": ("pamrun.sweep", "job", "trainings over a grid (-m a=1,2 b=x,y), each evaluated, summary at the end"),

@@ -43,10 +43,17 @@ height change since reset, a_prev the action applied in this step (the "previous
 of the next observation) and a_prev2 the one before it (zero at reset). The last two terms
 are not the thesis' (their weights are 0 by default): ``kda`` penalises changes of the
 command, for the smoother gait the thesis asked for, and ``kfall`` is paid once, on the
-step that ends the episode by a fall. Each term is in ``info["reward_terms"]`` under the
-key of its weight (``kvx``: forward, ``ky``: lateral, ``kz``: height, ``kv``: effort,
-``kt``: alive, ``kda``: command change, ``kfall``: fall), so a term and the ``reward.<key>``
-that scales it share one name.
+step that ends the episode by a fall.
+
+Every term is a weight times an unweighted feature, and this is the formula's one home
+(:meth:`PamWalkerEnv.reward_features`, :data:`REWARD_KEYS`, MyoSuite's style): the features are
+Vx, -y^2, -(z - z0)^2, -sum(a_prev^2), Ts / Tf, -sum((a_prev - a_prev2)^2) and -[fell], all 0 in a
+step whose physics blew up. ``info["reward_terms"]`` holds the weighted terms under the key of
+their weight (``kvx``: forward, ``ky``: lateral, ``kz``: height, ``kv``: effort, ``kt``: alive,
+``kda``: command change, ``kfall``: fall), so a term and the ``reward.<key>`` that scales it
+share one name; ``info["reward_unweighted"]`` holds the features in ``REWARD_KEYS`` order and
+``env.reward_weights`` the weights, so a learner can re-weight any term after the fact
+(pamrun's training stores the features in its replay buffer: :mod:`pamrun.curriculum`).
 
 ## Perturbations (``env`` group; ``pamrun eval eval.suite=robustness`` uses them)
 ``observation_noise_std`` adds Gaussian noise of that standard deviation (in each value's
@@ -56,12 +63,15 @@ constant force from ``push_time_s`` for ``push_duration_s`` rounded to whole con
 (at least one), force = impulse / (steps x Ts), so the impulse is exact.
 
 ## Episode end
-Truncation after Tf = 10 s (400 steps). Termination when the torso falls below
-``fall_height_ratio`` of its standing height, |y| > 0.5 m, |roll|, |pitch| or |yaw| >= pi/4,
-or the physics state is not finite (``info["physics_error"]`` is then True).
+Truncation after Tf = 10 s (400 steps). Termination by a fall (:func:`pamrun.task.fell`: the
+torso below ``fall_height_ratio`` of its standing height, |y| > ``max_lateral_m``, |roll|,
+|pitch| or |yaw| >= pi/4) or when the physics state is not finite (``info["physics_error"]``
+is then True). The env truncates itself rather than through Gymnasium's ``TimeLimit``: it is
+built directly (pamrun's evaluation, tests) as well as by ``gymnasium.make``, and its length
+is a config value (``env.episode_s``).
 
 ## info
-``x``, ``y``, ``z``, ``distance`` (x walked since reset) [m], ``reward_terms``,
+``x``, ``y``, ``z``, ``distance`` (x walked since reset) [m], ``reward_terms``, ``reward_unweighted``,
 ``pressure_kpa`` and ``contraction_pct`` (10, 2) of the 20 muscles, ``foot_force_n``
 (right, left) [N], ``sole_xyz_m`` (2, 4, 3) the centres of each foot's four contact spheres
 (front left, front right, back left, back right) [m], ``joint_torque_nm`` (10,)
@@ -86,8 +96,9 @@ from omegaconf import OmegaConf  # noqa: E402
 from pamrun import body as body_mod  # noqa: E402
 from pamrun.actuation import MuscleDrive, n_actions  # noqa: E402
 from pamrun.config import BodyConfig, EnvConfig, MuscleConfig, RewardConfig, to_object  # noqa: E402
+from pamrun.task import fell as fell_rule  # noqa: E402
 
-N_JOINTS = 10
+N_JOINTS = len(body_mod.JOINTS)  # the hinges, pamrun.config.LEG_JOINTS on each side
 # Observation blocks in order, with their sizes (the table above); the previous action follows.
 _OBS_BLOCKS = (("torso_y", 1), ("torso_z", 1), ("torso_rpy", 3), ("torso_velocity", 3), ("torso_angular_velocity", 3),
                ("joint_angle", N_JOINTS), ("joint_velocity", N_JOINTS), ("foot_force", 2))
@@ -174,6 +185,7 @@ class PamWalkerEnv(gym.Env):
         self.body_cfg = as_config(body, BodyConfig)
         self.muscle_cfg = as_config(muscle, MuscleConfig)
         self.reward_cfg = as_config(reward, RewardConfig)
+        self.reward_weights = np.array([getattr(self.reward_cfg, k) for k in REWARD_KEYS])  # REWARD_KEYS order
         self.env_cfg = as_config(env, EnvConfig)
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
@@ -241,7 +253,10 @@ class PamWalkerEnv(gym.Env):
         self._steps = 0
         self._x0 = float(d.qpos[0])
         feet, state = self.foot_forces_n(), self._state()
-        return self._observation(feet, state), self._info(False, feet, self._fell(state), state)
+        info = self._info(False, feet, self._fell(state), state)
+        info["reward_terms"] = dict.fromkeys(REWARD_KEYS, 0.0)  # as after a step, so info's keys never change
+        info["reward_unweighted"] = np.zeros(len(REWARD_KEYS))
+        return self._observation(feet, state), info
 
     def step(self, action):
         # np.clip(action, -1, 1) as two ufuncs (np.clip's Python wrapper costs more than both).
@@ -265,10 +280,11 @@ class PamWalkerEnv(gym.Env):
         if physics_error:
             obs = np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
         fell = physics_error or self._fell(state)
-        reward, terms = self._reward(action, physics_error, state, previous, fell)
+        reward, terms, features = self._reward(action, physics_error, state, previous, fell)
         truncated = self._steps >= self.max_steps and not fell
         info = self._info(physics_error, feet, fell, state)
         info["reward_terms"] = terms
+        info["reward_unweighted"] = np.array(features)
         return obs, reward, fell, truncated, info
 
     def render(self):
@@ -312,32 +328,26 @@ class PamWalkerEnv(gym.Env):
         # float64 values rounded once to float32, as np.concatenate(...).astype(np.float32) would
         return np.array([*sensed, *self._prev_action.tolist()], dtype=np.float32)
 
-    def _reward(self, action: np.ndarray, physics_error: bool, state: _State | None = None,
-                previous: np.ndarray | None = None, fell: bool = False) -> tuple[float, dict[str, float]]:
-        k, cfg = self.reward_cfg, self.env_cfg
-        if physics_error:
-            return 0.0, dict.fromkeys(REWARD_KEYS, 0.0)
+    def reward_features(self, action: np.ndarray, previous: np.ndarray | None, fell: bool,
+                        state: _State | None = None) -> list[float]:
+        """The reward's unweighted features in ``REWARD_KEYS`` order (module docstring, "Reward")."""
+        cfg = self.env_cfg
         _, y, z, _, _, _, vx, *_ = (self._state() if state is None else state)[2]
-        terms = {  # keyed by the weight that scales each term (Table 9.3)
-            "kvx": k.kvx * vx,
-            "ky": -k.ky * y**2,
-            "kz": -k.kz * (z - self.z0) ** 2,
-            "kv": -k.kv * float(np.add.reduce(action * action)),  # = np.sum(action**2), bit for bit
-            "kt": k.kt * cfg.control_dt_s / cfg.episode_s,
-            # beyond Table 9.3 (0 in the thesis): smoothness and a fall penalty
-            "kda": -k.kda * float(np.add.reduce((action - (action if previous is None else previous)) ** 2)),
-            "kfall": -k.kfall * float(fell),
-        }
-        return float(sum(terms.values())), terms
+        return [vx, -(y**2), -((z - self.z0) ** 2),
+                -float(np.add.reduce(action * action)),  # = np.sum(action**2), bit for bit
+                cfg.control_dt_s / cfg.episode_s,
+                -float(np.add.reduce((action - (action if previous is None else previous)) ** 2)),
+                -float(fell)]
+
+    def _reward(self, action: np.ndarray, physics_error: bool, state: _State | None = None,
+                previous: np.ndarray | None = None, fell: bool = False) -> tuple[float, dict[str, float], list[float]]:
+        """The reward, its weighted terms by weight name, and its unweighted features."""
+        features = [0.0] * len(REWARD_KEYS) if physics_error else self.reward_features(action, previous, fell, state)
+        terms = {k: w * f for k, w, f in zip(REWARD_KEYS, self.reward_weights.tolist(), features)}
+        return float(sum(terms.values())), terms, features
 
     def _fell(self, state: _State | None = None) -> bool:
-        cfg = self.env_cfg
-        _, y, z, roll, pitch, yaw, *_ = (self._state() if state is None else state)[2]
-        return bool(
-            z < cfg.fall_height_ratio * self.z0
-            or abs(y) > cfg.max_lateral_m
-            or max(abs(roll), abs(pitch), abs(yaw)) >= cfg.max_tilt_rad
-        )
+        return fell_rule((self._state() if state is None else state)[2], self.z0, self.env_cfg)
 
     def _info(self, physics_error: bool, foot_force_n: np.ndarray, fell: bool, state: _State | None = None
               ) -> dict[str, Any]:

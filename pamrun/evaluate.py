@@ -10,9 +10,7 @@ deterministic policy, episode k from seed ``eval.seed + k`` for every agent, spr
 episode: return, forward distance, duration before a fall, fell, max |y|, mean forward
 speed, the mean absolute change of the 20 commanded pressures per control step (the
 thesis found its gait pulsing) and the gait and air metrics of :mod:`pamrun.gait`. An
-episode passes the **walk test** when it lasts ``eval.walk_duration_s`` without a fall,
-never leaves |y| <= ``eval.walk_lateral_m`` and ends ``eval.walk_distance_m`` forward; an
-agent's pass rate comes with its episode count and 95 % Wilson interval.
+episode passes the **walk test** of :func:`pamrun.task.walk_passed`; an agent's pass rate comes with its episode count and 95 % Wilson interval.
 
 **Held-out seeds.** Evaluation during training selects ``best_eval.pt`` on the selection
 block (seeds ``eval.selection_seed + k``); ``pamrun eval`` reports on ``eval.seed + k``
@@ -51,7 +49,9 @@ from pamrun.checkpoints import (ENV_SECTIONS, Agent, CheckpointError, check_fits
 
 from pamrun.gait import GAIT_METRICS
 from pamrun.rollout import (torch_threads, aggregate, env_kwargs, eval_env_options, evaluate_agents, gait_spec,
-                            make_policy, perturb, run_episode, walk_passed)
+                            make_policy, perturb, run_episode)
+from pamrun.rundir import RunFiles
+from pamrun.task import walk_passed
 
 LEADERBOARD_FIELDS = ("rank", "agent", "episodes", "walk_test", "walk_passes", "walk_pass_rate", "walk_pass_ci_low",
                       "walk_pass_ci_high", "stand_rate", "distance_mean", "distance_std", "distance_min",
@@ -95,11 +95,6 @@ LEADERBOARD_FIELDS = ("rank", "agent", "episodes", "walk_test", "walk_passes", "
 
 
 # --------------------------------------------------------------------------- during training
-
-EVALS_FIELDS = ("frames", "episodes", "wall_time_s", "eval_s", "walk_pass_rate", "stand_rate", "fall_rate",
-                "distance_mean", "distance_min", "duration_mean", "max_abs_y_max", "return_mean",
-                "pressure_change_mean", "best")
-
 
 class TrainingEvaluator:
     """The walk test of ``pamrun eval`` run on the current actor during training.
@@ -507,10 +502,10 @@ def draw_figures(out: Path, ecfg, agents: list[Agent], kwargs: list[dict], resul
         plots.gait(plots.read_episodes(out / "episodes.jsonl", {best.label}), spec.joint_limits_rad,
                    spec.contact_threshold_n, out / "gait.png")
         written.append("gait.png")
-    runs = list(dict.fromkeys(a.run_dir for a in agents if a.run_dir and (a.run_dir / "episodes.csv").exists()))
+    runs = list(dict.fromkeys(a.run_dir for a in agents if a.run_dir and RunFiles(a.run_dir).episodes.exists()))
     for run in runs:
         name = "training.png" if len(runs) == 1 else f"training_{run.name}.png"
-        plots.training_curves(run / "episodes.csv", out / name)
+        plots.training_curves(RunFiles(run).episodes, out / name)
         written.append(name)
     if ecfg.render:
         video = record_video(best, kwargs[agents.index(best)], ecfg.seed, ecfg.video_width, ecfg.video_height,

@@ -15,13 +15,17 @@ table puts it in the last band, a NaN force pulls with no slope).
 
 Compiled on first use (about 1.5 s) and cached next to this file (``cache=True``), so a
 later process only loads it (about 0.4 s).
+
+:class:`CompiledStep` owns the kernels' constants and buffers and spells their arguments
+once; :class:`pamrun.actuation.CompiledKinematicCoupling` steps the muscles through it.
 """
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
-# Layout of the ``params`` array (scalars of the muscle config, see MuscleDrive).
+# Layout of the ``params`` array (scalars of the muscle config, filled by CompiledStep).
 P_VMIN, P_VMAX, P_GAIN, P_PMIN, P_PMAX, P_LAG, P_MUSCLE_MAX, P_LAW_MAX, P_REST, P_TAU, P_LENGTH_SCALE = range(11)
 N_PARAMS = 11
 # Rows of the ``joint`` array, (4, n): per-joint constants.
@@ -36,6 +40,104 @@ def _clip(x, lo, hi):
     if x > hi:
         return hi
     return x
+
+
+@njit(cache=True)
+def _regulate(voltage, new_voltage, lag_factor, params, target, pressure):
+    """:meth:`pamrun.muscle.Regulator.step` for every muscle: target = clip(gain clip(V)) [kPa]
+    on a new command, then the first-order lag. Returns whether the pressures changed."""
+    n = pressure.shape[0]
+    changed = False
+    if new_voltage:
+        vmin, vmax, gain = params[P_VMIN], params[P_VMAX], params[P_GAIN]
+        pmin, pmax = params[P_PMIN], params[P_PMAX]
+        for k in range(n):
+            for s in range(2):
+                target[k, s] = _clip(gain * _clip(voltage[k, s], vmin, vmax), pmin, pmax)
+                if params[P_LAG] == 0:
+                    pressure[k, s] = target[k, s]
+        changed = params[P_LAG] == 0
+    if params[P_LAG] > 0:
+        for k in range(n):
+            for s in range(2):
+                pressure[k, s] += (target[k, s] - pressure[k, s]) * lag_factor
+        changed = True
+    return changed
+
+
+@njit(cache=True)
+def _spring_band(p, edges, last):
+    """SpringTable.band for one pressure [kPa]: searchsorted(edges, p, "right") - 1, clipped to
+    the bands 0..last; NaN goes to the last band."""
+    if p != p:
+        return last
+    band = -1
+    for e in range(edges.shape[0]):
+        if edges[e] <= p:
+            band = e
+        else:
+            break
+    return min(max(band, 0), last)
+
+
+@njit(cache=True)
+def _at_pressure(params, pressure, law, edges, springs, joint, coef, damping):
+    """What depends on pressure only: the force law reduced to each muscle's pressure, ``coef``
+    a_i(P) [N / %^i] (ThesisPolynomial.at_pressure), and each pair's dampers
+    k (D1 + D2) r^2 [N m s/rad] with D = tau S (thesis §8.3), into ``damping``."""
+    muscle_max, law_max = params[P_MUSCLE_MAX], params[P_LAW_MAX]
+    tau, length_scale = params[P_TAU], params[P_LENGTH_SCALE]
+    last = springs.shape[0] - 1
+    for k in range(pressure.shape[0]):
+        spring_sum = 0.0
+        for s in range(2):
+            p = pressure[k, s]
+            if p > muscle_max:  # AntagonisticPairs.pressure_kpa: np.minimum (NaN stays)
+                p = muscle_max
+            spring_sum += springs[_spring_band(p, edges, last)]
+            # ThesisPolynomial.at_pressure: a_i = sum_j c_ij P^j, P clipped to [0, law max]
+            p = _clip(p, 0.0, law_max)
+            p2 = p * p  # P^j by products (numpy: libm pow, several times slower)
+            p3 = p2 * p
+            p4 = p2 * p2
+            p5 = p4 * p
+            for i in range(6):
+                coef[i, k, s] = (law[i, 0] + law[i, 1] * p + law[i, 2] * p2 + law[i, 3] * p3 + law[i, 4] * p4
+                                 + law[i, 5] * p5)
+        damping[k] = tau * spring_sum * length_scale * joint[J_LEVER, k] * joint[J_RADIUS, k]
+
+
+@njit(cache=True)
+def _force_and_slope(coef, k, s, x):
+    """One muscle's force F [N] (never negative) and slope dF/dx [N/%] (0 where slack) at
+    contraction x [%], by Horner's rule (ThesisPolynomial.force_and_slope)."""
+    force = coef[5, k, s] * x + coef[4, k, s]
+    slope = 5.0 * coef[5, k, s] * x + 4.0 * coef[4, k, s]
+    for i in (3, 2, 1):
+        force = force * x + coef[i, k, s]
+        slope = slope * x + i * coef[i, k, s]
+    force = force * x + coef[0, k, s]
+    if not force > 0.0:  # slack: no slope (np.where(force > 0, slope, 0))
+        slope = 0.0
+    if not (force >= 0.0 or force != force):  # np.maximum(force, 0.0)
+        force = 0.0
+    return force, slope
+
+
+@njit(cache=True)
+def _linearise(params, joint, angle, contraction, coef, torque, stiffness):
+    """Contractions c1,2 = c_rest +- 100 r (theta - theta_n) / L0 [%] at ``angle`` [rad], and
+    each pair's torque k (F1 - F2) r [N m] and stiffness -dT/dtheta [N m/rad]."""
+    rest = params[P_REST]
+    for k in range(angle.shape[0]):
+        pct_per_rad, lever = joint[J_PCT_PER_RAD, k], joint[J_LEVER, k]
+        shift = pct_per_rad * (angle[k] - joint[J_NEUTRAL, k])
+        contraction[k, 0] = rest + shift
+        contraction[k, 1] = rest - shift
+        f0, g0 = _force_and_slope(coef, k, 0, contraction[k, 0])
+        f1, g1 = _force_and_slope(coef, k, 1, contraction[k, 1])
+        torque[k] = (f0 - f1) * lever
+        stiffness[k] = -(g0 + g1) * pct_per_rad * lever
 
 
 @njit(cache=True)
@@ -58,90 +160,20 @@ def muscle_step(voltage, new_voltage, stale, lag_factor, params, target, pressur
             or joint.shape[0] != 4 or joint.shape[1] != n or law.shape[0] != 6 or law.shape[1] != 6
             or params.shape[0] != N_PARAMS or edges.shape[0] < 1 or springs.shape[0] < 1):
         raise ValueError("muscle_step: array shapes do not fit the number of pairs")
-    changed = False
-    if new_voltage:
-        vmin, vmax, gain = params[P_VMIN], params[P_VMAX], params[P_GAIN]
-        pmin, pmax = params[P_PMIN], params[P_PMAX]
-        for k in range(n):
-            for s in range(2):
-                target[k, s] = _clip(gain * _clip(voltage[k, s], vmin, vmax), pmin, pmax)
-                if params[P_LAG] == 0:
-                    pressure[k, s] = target[k, s]
-        changed = params[P_LAG] == 0
-    if params[P_LAG] > 0:
-        for k in range(n):
-            for s in range(2):
-                pressure[k, s] += (target[k, s] - pressure[k, s]) * lag_factor
-        changed = True
+    changed = _regulate(voltage, new_voltage, lag_factor, params, target, pressure)
     if changed or stale:
-        muscle_max, law_max = params[P_MUSCLE_MAX], params[P_LAW_MAX]
-        tau, length_scale = params[P_TAU], params[P_LENGTH_SCALE]
-        n_edges, last = edges.shape[0], springs.shape[0] - 1
-        for k in range(n):
-            spring_sum = 0.0
-            for s in range(2):
-                p = pressure[k, s]
-                if p > muscle_max:  # AntagonisticPairs.pressure_kpa: np.minimum (NaN stays)
-                    p = muscle_max
-                # SpringTable.band: searchsorted(edges, p, "right") - 1, clipped to the bands
-                if p != p:
-                    band = last
-                else:
-                    band = -1
-                    for e in range(n_edges):
-                        if edges[e] <= p:
-                            band = e
-                        else:
-                            break
-                    band = min(max(band, 0), last)
-                spring_sum += springs[band]
-                # ThesisPolynomial.at_pressure: a_i = sum_j c_ij P^j, P clipped to [0, law max]
-                p = _clip(p, 0.0, law_max)
-                p2 = p * p  # P^j by products (numpy: libm pow, several times slower)
-                p3 = p2 * p
-                p4 = p2 * p2
-                p5 = p4 * p
-                for i in range(6):
-                    coef[i, k, s] = (law[i, 0] + law[i, 1] * p + law[i, 2] * p2 + law[i, 3] * p3 + law[i, 4] * p4
-                                     + law[i, 5] * p5)
-            damping[k] = tau * spring_sum * length_scale * joint[J_LEVER, k] * joint[J_RADIUS, k]
-    rest = params[P_REST]
-    for k in range(n):
-        pct_per_rad, lever = joint[J_PCT_PER_RAD, k], joint[J_LEVER, k]
-        shift = pct_per_rad * (angle[k] - joint[J_NEUTRAL, k])
-        contraction[k, 0] = rest + shift
-        contraction[k, 1] = rest - shift
-        f0 = 0.0
-        f1 = 0.0
-        g0 = 0.0
-        g1 = 0.0
-        for s in range(2):
-            x = contraction[k, s]
-            force = coef[5, k, s] * x + coef[4, k, s]
-            slope = 5.0 * coef[5, k, s] * x + 4.0 * coef[4, k, s]
-            for i in (3, 2, 1):
-                force = force * x + coef[i, k, s]
-                slope = slope * x + i * coef[i, k, s]
-            force = force * x + coef[0, k, s]
-            if not force > 0.0:  # slack: no slope (np.where(force > 0, slope, 0))
-                slope = 0.0
-            if not (force >= 0.0 or force != force):  # np.maximum(force, 0.0)
-                force = 0.0
-            if s == 0:
-                f0, g0 = force, slope
-            else:
-                f1, g1 = force, slope
-        torque[k] = (f0 - f1) * lever
-        stiffness[k] = -(g0 + g1) * pct_per_rad * lever
+        _at_pressure(params, pressure, law, edges, springs, joint, coef, damping)
+    _linearise(params, joint, angle, contraction, coef, torque, stiffness)
     return changed
 
 
 @njit(cache=True)
 def muscle_apply(voltage, new_voltage, stale, lag_factor, params, target, pressure, law, edges, springs, joint,
-                 qpos, qpos_idx, angle, contraction, coef, damping, torque, stiffness, ctrl, biasprm):
-    """:func:`muscle_step` at the joint angles theta0 = ``qpos[qpos_idx]``, then MuJoCo's actuator
-    inputs ctrl = T + K theta0, biasprm[:, 1] = -K, biasprm[:, 2] = -D, so that each physics step
-    applies T - K (theta - theta0) - D theta' (see MuscleDrive.apply)."""
+                 angle, contraction, coef, damping, torque, stiffness, qpos, qpos_idx, ctrl, biasprm):
+    """:func:`muscle_step` (same arguments; ``angle`` is overwritten) at the joint angles
+    theta0 = ``qpos[qpos_idx]`` [rad], then MuJoCo's actuator inputs ctrl = T + K theta0,
+    biasprm[:, 1] = -K, biasprm[:, 2] = -D, so that each physics step applies
+    T - K (theta - theta0) - D theta' [N m] (see MuscleDrive.apply)."""
     n = angle.shape[0]
     if qpos_idx.shape[0] != n or ctrl.shape[0] != n or biasprm.shape[0] != n or biasprm.shape[1] < 3:
         raise ValueError("muscle_apply: one actuator and one joint per pair expected")
@@ -157,3 +189,86 @@ def muscle_apply(voltage, new_voltage, stale, lag_factor, params, target, pressu
         biasprm[k, 2] = -damping[k]
     return changed
 
+
+
+class CompiledStep:
+    """The compiled muscle step's state and arguments, spelled once (``muscle.kernel=numba``).
+
+    Built from a kinematic coupling (:class:`pamrun.actuation.KinematicCoupling`): its config,
+    pairs and per-joint constants (pulley radius r [m], lever k r [m], contraction per radian
+    100 r / L0 [%/rad], neutral angle [rad]). Owns the kernels' constants (``params``, the
+    force law's coefficients, the spring table, ``joint``) and buffers (the force law reduced
+    to the current pressures ``coef``, joint angles, torques [N m], stiffnesses [N m/rad]);
+    writes the coupling's own ``contraction_pct`` [%] and ``damping`` [N m s/rad] arrays, and
+    the regulator's ``pressure_kpa`` and ``target_kpa`` in place (the regulator keeps the
+    command's bookkeeping: :meth:`pamrun.muscle.Regulator.hold`).
+    """
+
+    def __init__(self, coupling):
+        cfg, pairs, n = coupling.cfg, coupling.pairs, len(coupling.radius_m)
+        reg = cfg.regulator
+        self.params = np.zeros(N_PARAMS)
+        for index, value in ((P_VMIN, reg.min_voltage_v), (P_VMAX, reg.max_voltage_v),
+                             (P_GAIN, reg.gain_kpa_per_v), (P_PMIN, reg.min_pressure_kpa),
+                             (P_PMAX, reg.max_pressure_kpa), (P_LAG, reg.lag_s),
+                             (P_MUSCLE_MAX, cfg.max_pressure_kpa), (P_LAW_MAX, pairs.law.max_pressure_kpa),
+                             (P_REST, coupling.rest_pct), (P_TAU, cfg.tau_s),
+                             (P_LENGTH_SCALE, pairs.dynamics.length_scale)):
+            self.params[index] = value
+        self.law = np.ascontiguousarray(pairs.law.coefficients, dtype=float)
+        self.edges = np.ascontiguousarray(pairs.dynamics.spring.edges_kpa, dtype=float)
+        self.springs = np.ascontiguousarray(pairs.dynamics.spring.values_n_per_m, dtype=float)
+        self.joint = np.empty((4, n))
+        self.joint[J_PCT_PER_RAD], self.joint[J_NEUTRAL] = coupling.pct_per_rad, coupling.neutral
+        self.joint[J_LEVER], self.joint[J_RADIUS] = coupling.lever, coupling.radius_m
+        self.regulator = pairs.regulator
+        self.contraction, self.damping = coupling.contraction_pct, coupling.damping
+        self.coef = np.zeros((6, n, 2))
+        self.angle, self.torque, self.stiffness = np.zeros(n), np.zeros(n), np.zeros(n)
+        self.stale = True  # no coefficients yet (after a reset): the next step computes them
+        self._lag_dt: float | None = None
+        self._lag_factor = 0.0
+
+    def arguments(self, voltage_v: np.ndarray, dt_s: float, angle_rad: np.ndarray) -> tuple:
+        """:func:`muscle_step`'s arguments, in its order, for holding ``voltage_v`` (n, 2) [V]
+        over dt_s [s] at the joint angles ``angle_rad`` (n,) [rad]."""
+        reg = self.regulator
+        new = reg.hold(voltage_v)  # before target_kpa, which a first command may replace
+        if dt_s != self._lag_dt:
+            self._lag_factor, self._lag_dt = reg.lag_factor(dt_s), dt_s
+        return (voltage_v, new, self.stale, self._lag_factor, self.params, reg.target_kpa, reg.pressure_kpa,
+                self.law, self.edges, self.springs, self.joint, angle_rad, self.contraction, self.coef,
+                self.damping, self.torque, self.stiffness)
+
+    def step(self, voltage_v: np.ndarray, angle_rad: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Advance by dt_s; the pairs' torque k (F1 - F2) r [N m] at ``angle_rad`` and their
+        stiffness -dT/dtheta [N m/rad], both (n,) and fresh arrays."""
+        angle = np.asarray(angle_rad, dtype=float)
+        if angle.shape != self.angle.shape:
+            raise ValueError(f"joint angles must have shape {self.angle.shape}, got {angle.shape}")
+        muscle_step(*self.arguments(voltage_v, dt_s, angle))
+        self.stale = False
+        return self.torque.copy(), self.stiffness.copy()
+
+    def _mujoco_arguments(self, voltage_v: np.ndarray, dt_s: float, model, data, qpos_idx: np.ndarray) -> tuple:
+        """:func:`muscle_apply`'s arguments: the step's, at the angles ``data.qpos[qpos_idx]``."""
+        return (*self.arguments(voltage_v, dt_s, self.angle), data.qpos, qpos_idx, data.ctrl, model.actuator_biasprm)
+
+    def apply(self, voltage_v: np.ndarray, model, data, qpos_idx: np.ndarray, dt_s: float) -> None:
+        """Advance by dt_s and set MuJoCo's actuators to the pairs linearised at the current angles."""
+        muscle_apply(*self._mujoco_arguments(voltage_v, dt_s, model, data, qpos_idx))
+        self.stale = False
+
+    def advance(self, voltage_v: np.ndarray, model, data, qpos_idx: np.ndarray, dt_s: float, muscle_steps: int,
+                physics_steps: int) -> None:
+        """``muscle_steps`` times :meth:`apply`, then ``physics_steps`` MuJoCo steps; the arguments
+        gathered once, so between MuJoCo steps there is one kernel call and no other Python."""
+        from mujoco import mj_step
+
+        first = self._mujoco_arguments(voltage_v, dt_s, model, data, qpos_idx)
+        # after the first call the command is the regulator's and the coefficients exist
+        later = (first[0], False, False, *first[3:])
+        for k in range(muscle_steps):
+            muscle_apply(*(later if k else first))
+            self.stale = False
+            mj_step(model, data, physics_steps)

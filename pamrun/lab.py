@@ -230,19 +230,7 @@ def openloop_movement(cfg: Config, movement: str, duration_s: float = 3.0, step_
     angles = np.asarray(series["angle_deg"])
     final = float(angles[np.asarray(series["time_s"]) >= duration_s - 0.5].mean())
     limit = float(np.degrees(limits[side]))
-    muscle_now = float(data.actuator_force[j])  # muscle torque at the end [N m]
-    # Why a joint stalls: the gravity torque to hold at the limit vs the muscle torque there.
-    data.qpos[:] = 0
-    data.qpos[qi[j]] = limits[side]
-    data.qvel[:] = 0
-    mujoco.mj_forward(model, data)
-    gravity = float(data.qfrc_bias[vi[j]])
-    if drive.kinematic:
-        angle = np.zeros(len(JOINTS))
-        angle[j] = limits[side]
-        muscle_at_limit = float(drive.torques_nm(angle, np.zeros(len(JOINTS)), dt)[j])
-    else:
-        muscle_at_limit = muscle_now
+    gravity, muscle_at_limit = _torques_at_limit(model, data, drive, j, limits[side], dt)
     return {
         "joint": f"left_{joint}",
         "limit_deg": round(limit, 3),
@@ -255,6 +243,26 @@ def openloop_movement(cfg: Config, movement: str, duration_s: float = 3.0, step_
         "gravity_torque_at_limit_nm": round(gravity, 3),
         **series,
     }
+
+
+def _torques_at_limit(model, data, drive, j: int, limit_rad: float, dt: float) -> tuple[float, float]:
+    """Why a joint stalls: the gravity torque to hold joint ``j`` at its limit, and the muscles'
+    torque there [N m] (the thesis coupling's: the torque it ended with)."""
+    import mujoco
+
+    from pamrun.body import JOINTS, joint_addresses
+
+    muscle_now = float(data.actuator_force[j])  # muscle torque at the end [N m]
+    qi, vi = joint_addresses(model)
+    data.qpos[:] = 0
+    data.qpos[qi[j]] = limit_rad
+    data.qvel[:] = 0
+    mujoco.mj_forward(model, data)
+    if not drive.kinematic:
+        return float(data.qfrc_bias[vi[j]]), muscle_now
+    angle = np.zeros(len(JOINTS))
+    angle[j] = limit_rad
+    return float(data.qfrc_bias[vi[j]]), float(drive.torques_nm(angle, np.zeros(len(JOINTS)), dt)[j])
 
 
 def openloop(dcfg: DictConfig) -> None:

@@ -136,6 +136,12 @@ class Regulator:
     Linear (``gain_kpa_per_v``), input clipped to its voltage range and output to its
     pressure range (0.1-10 bar). With ``lag_s`` > 0 the pressure follows the target
     through an exactly discretised first-order lag; with 0 it is reached at once.
+
+    State: ``pressure_kpa`` (the output), :attr:`target_kpa` (where it is heading) and the
+    command held (a voltage array; a new array is a new command). :meth:`step` advances all
+    three; a caller that computes the target and the lag itself (the compiled muscle step,
+    :class:`pamrun.kernels.CompiledStep`) takes the command with :meth:`hold` and updates
+    ``pressure_kpa`` and ``target_kpa`` in place.
     """
 
     def __init__(self, cfg: RegulatorConfig, initial_pressure_kpa: np.ndarray):
@@ -143,6 +149,16 @@ class Regulator:
         self.pressure_kpa = np.array(initial_pressure_kpa, dtype=float)
         self._voltage: np.ndarray | None = None
         self._target = self.pressure_kpa.copy()
+
+    def reset(self, pressure_kpa: np.ndarray) -> None:
+        """Output at ``pressure_kpa`` [kPa] (a new array) and no command held: the next is new."""
+        self.pressure_kpa = np.array(pressure_kpa, dtype=float)
+        self._voltage = None
+
+    @property
+    def target_kpa(self) -> np.ndarray:
+        """Pressure [kPa] the output is heading to: the held command's, clipped (see :meth:`hold`)."""
+        return self._target
 
     def target_pressure_kpa(self, voltage_v: np.ndarray) -> np.ndarray:
         c = self.cfg
@@ -152,6 +168,28 @@ class Regulator:
     def voltage_for_pressure_v(self, pressure_kpa: np.ndarray) -> np.ndarray:
         """Inverse of the linear map (for experiments that are specified in pressure)."""
         return np.asarray(pressure_kpa, float) / self.cfg.gain_kpa_per_v
+
+    def lag_factor(self, dt_s: float) -> float:
+        """Share of the gap to the target the pressure closes in dt_s: 1 - exp(-dt_s / lag_s) (0 if no lag)."""
+        lag = self.cfg.lag_s
+        return float(-np.expm1(-dt_s / lag)) if lag > 0 else 0.0
+
+    def hold(self, voltage_v: np.ndarray) -> bool:
+        """Take ``voltage_v`` (the output's shape) [V] as the command, without computing its target.
+
+        Returns whether it is a new command (another array than the one held), whose target
+        the caller then writes into :attr:`target_kpa` in place, as :meth:`step` would
+        compute it.
+        """
+        if voltage_v is self._voltage:
+            return False
+        if np.shape(voltage_v) != self.pressure_kpa.shape:
+            raise ValueError(f"regulator voltages must have shape {self.pressure_kpa.shape}, "
+                             f"got {np.shape(voltage_v)}")
+        self._voltage = voltage_v
+        if not isinstance(self._target, np.ndarray) or self._target.shape != self.pressure_kpa.shape:
+            self._target = np.zeros(self.pressure_kpa.shape)
+        return True
 
     def step(self, voltage_v: np.ndarray, dt_s: float) -> bool:
         """Advance by dt_s holding ``voltage_v``; return whether the pressure changed.
@@ -166,7 +204,7 @@ class Regulator:
                 self.pressure_kpa = self._target.copy()
                 return True
         if self.cfg.lag_s > 0:
-            self.pressure_kpa += (self._target - self.pressure_kpa) * -np.expm1(-dt_s / self.cfg.lag_s)
+            self.pressure_kpa += (self._target - self.pressure_kpa) * self.lag_factor(dt_s)
             return True
         return False
 
@@ -218,12 +256,24 @@ class FirstOrderPairDynamics:
     def set_contraction_pct(self, contraction_pct: np.ndarray) -> None:
         self.x_m = (np.broadcast_to(contraction_pct, self.x_m.shape) - self.rest_pct) / self.pct_per_m
 
+    def reset(self, contraction_pct: np.ndarray) -> None:
+        """Muscles at ``contraction_pct`` [%]; what depends on pressure is recomputed at the next step."""
+        self.set_contraction_pct(contraction_pct)
+        self._pressure = None
+
     def at_pressure(self, pressure_kpa: np.ndarray) -> None:
         """Cache what depends on pressure only: force coefficients, S and D = tau S."""
         self._pressure = pressure_kpa
         self._coef = self.law.at_pressure(pressure_kpa)
         self.s = self.spring(pressure_kpa) * self.length_scale
         self.d = self.tau_s * self.s
+
+    def coefficients(self, pressure_kpa: np.ndarray) -> np.ndarray:
+        """The force law's coefficients a_i(P) [N / %^i] at the last step's pressures, or at
+        ``pressure_kpa`` [kPa] when there was no step since a reset."""
+        if self._pressure is None:
+            self.at_pressure(pressure_kpa)
+        return self._coef
 
     def step(self, pressure_kpa: np.ndarray, dt_s: float, pressure_changed: bool = True) -> np.ndarray:
         """Advance by dt_s at the given muscle pressures [kPa]; return contractions [%].
@@ -271,10 +321,9 @@ class AntagonisticPairs:
         self._pressure = np.zeros((n_pairs, 2))
 
     def reset(self, pressure_kpa: float | np.ndarray, contraction_pct: float | np.ndarray) -> None:
-        self.regulator.pressure_kpa = np.array(np.broadcast_to(pressure_kpa, (self.n_pairs, 2)), dtype=float)
-        self.regulator._voltage = None
-        self.dynamics.set_contraction_pct(contraction_pct)
-        self.dynamics._pressure = None
+        """Every muscle at ``pressure_kpa`` [kPa] and ``contraction_pct`` [%], at rest, no command held."""
+        self.regulator.reset(np.broadcast_to(pressure_kpa, (self.n_pairs, 2)))
+        self.dynamics.reset(contraction_pct)
 
     def voltages_v(self, action: np.ndarray) -> np.ndarray:
         """(n,) actions in [-1, 1] -> (n, 2) regulator voltages V0 +- dv_max * a."""
@@ -295,10 +344,8 @@ class AntagonisticPairs:
 
     def forces_n(self) -> np.ndarray:
         """Force of one muscle of each side [N], (n, 2), never negative (before ``force_scale``)."""
-        dyn = self.dynamics
-        if dyn._pressure is None:
-            dyn.at_pressure(self.pressure_kpa)
-        return np.maximum(self.law.force_and_slope(dyn._coef, self.contraction_pct())[0], 0.0)
+        coef = self.dynamics.coefficients(self.pressure_kpa)
+        return np.maximum(self.law.force_and_slope(coef, self.contraction_pct())[0], 0.0)
 
     def torque_nm(self, radius_m: np.ndarray) -> np.ndarray:
         """Joint torque [N m] after the last step: (F1 - F2) r, forces never negative."""

@@ -15,6 +15,14 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
+def _save(fig, png_path: Path, dpi: int) -> Path:
+    """Lay ``fig`` out, write it to ``png_path`` at ``dpi`` and close it: every figure's last step."""
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=dpi)
+    plt.close(fig)
+    return Path(png_path)
+
+
 def step_response(json_path: Path, png_path: Path) -> Path:
     """Contraction of both muscles over time per experiment (thesis Figs 10.4-10.5)."""
     data = json.loads(Path(json_path).read_text())
@@ -31,10 +39,7 @@ def step_response(json_path: Path, png_path: Path) -> Path:
         ax.set_ylabel("contraction [%]")
         ax.grid(alpha=0.3)
         ax.legend(title="dotted: thesis final", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(png_path, dpi=120)
-    plt.close(fig)
-    return Path(png_path)
+    return _save(fig, png_path, dpi=120)
 
 
 def force_curves(json_path: Path, curves_png: Path, surface_png: Path) -> tuple[Path, Path]:
@@ -54,9 +59,7 @@ def force_curves(json_path: Path, curves_png: Path, surface_png: Path) -> tuple[
     ax.set_title("DMSP-20 force-contraction (thesis Fig. 8.10)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, ncol=2)
-    fig.tight_layout()
-    fig.savefig(curves_png, dpi=120)
-    plt.close(fig)
+    curves = _save(fig, curves_png, dpi=120)
 
     fig = plt.figure(figsize=(6.5, 5))
     ax3 = fig.add_subplot(projection="3d")
@@ -66,10 +69,7 @@ def force_curves(json_path: Path, curves_png: Path, surface_png: Path) -> tuple[
     ax3.set_ylabel("pressure [bar]")
     ax3.set_zlabel("force [N]")
     ax3.set_title("F(x, P) polynomial (thesis Fig. 8.9)")
-    fig.tight_layout()
-    fig.savefig(surface_png, dpi=120)
-    plt.close(fig)
-    return Path(curves_png), Path(surface_png)
+    return curves, _save(fig, surface_png, dpi=120)
 
 
 def openloop_movement(json_path: Path, movement: str, png_path: Path) -> Path:
@@ -92,10 +92,7 @@ def openloop_movement(json_path: Path, movement: str, png_path: Path) -> Path:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     fig.suptitle(f"{movement.replace('_', ' ')} ({data['coupling']} coupling)")
-    fig.tight_layout()
-    fig.savefig(png_path, dpi=100)
-    plt.close(fig)
-    return Path(png_path)
+    return _save(fig, png_path, dpi=100)
 
 
 def training_curves(csv_path: Path, png_path: Path) -> Path:
@@ -115,10 +112,7 @@ def training_curves(csv_path: Path, png_path: Path) -> Path:
     ax.set_title(f"Training progress ({len(rows)} episodes; thesis Fig. 10.24)")
     ax.grid(alpha=0.3)
     ax.legend()
-    fig.tight_layout()
-    fig.savefig(png_path, dpi=110)
-    plt.close(fig)
-    return Path(png_path)
+    return _save(fig, png_path, dpi=110)
 
 
 def eval_curves(csv_path: Path, png_path: Path, walk_distance_m: float = 7.0, episode_s: float = 10.0) -> Path:
@@ -151,10 +145,7 @@ def eval_curves(csv_path: Path, png_path: Path, walk_distance_m: float = 7.0, ep
     bottom.legend(loc="upper left")
     for ax in (top, bottom):
         ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(png_path, dpi=110)
-    plt.close(fig)
-    return Path(png_path)
+    return _save(fig, png_path, dpi=110)
 
 
 def video_frames(mp4_path: Path, png_path: Path, n: int = 5, dt_s: float = 0.025) -> Path:
@@ -169,10 +160,7 @@ def video_frames(mp4_path: Path, png_path: Path, n: int = 5, dt_s: float = 0.025
         ax.imshow(frames[k])
         ax.set_title(f"t = {k * dt_s:.2f} s", fontsize=9)
         ax.axis("off")
-    fig.tight_layout()
-    fig.savefig(png_path, dpi=100)
-    plt.close(fig)
-    return Path(png_path)
+    return _save(fig, png_path, dpi=100)
 
 
 def read_episodes(jsonl_path: Path, agents: set[str] | None = None) -> list[dict]:
@@ -214,10 +202,7 @@ def trajectories(jsonl_path: Path, leaderboard_path: Path, png_path: Path, top_k
     ax.set_title(f"Paths of the best {len(top)} agents (o: end, x: fall; thesis Fig. 10.25)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    fig.tight_layout()
-    fig.savefig(png_path, dpi=110)
-    plt.close(fig)
-    return Path(png_path)
+    return _save(fig, png_path, dpi=110)
 
 
 def pressures(jsonl_path: Path, agent: str, episode: int, png_path: Path) -> Path:
@@ -252,10 +237,7 @@ def pressures(jsonl_path: Path, agent: str, episode: int, png_path: Path) -> Pat
     fig.suptitle(f"Muscle pressures of {agent}, episode {episode} (seed {record['seed']}): "
                  f"{record['distance_m']:.2f} m in {record['duration_s']:.2f} s, {outcome} (thesis Figs 10.26-10.31)",
                  fontsize=10)
-    fig.tight_layout()
-    fig.savefig(png_path, dpi=100)
-    plt.close(fig)
-    return Path(png_path)
+    return _save(fig, png_path, dpi=100)
 
 
 def sweep_curves(groups: list[tuple[str, list[Path]]], png_path: Path, points: int = 100) -> Path:
@@ -290,10 +272,7 @@ def sweep_curves(groups: list[tuple[str, list[Path]]], png_path: Path, points: i
     ax.grid(alpha=0.3)
     if groups:
         ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(png_path, dpi=110)
-    plt.close(fig)
-    return Path(png_path)
+    return _save(fig, png_path, dpi=110)
 
 
 def optuna_history(points: list[tuple[int, float]], direction: str, metric: str, png_path: Path) -> Path:
@@ -309,10 +288,7 @@ def optuna_history(points: list[tuple[int, float]], direction: str, metric: str,
     ax.set_ylabel(metric)
     ax.set_title(f"Optuna search ({direction} {metric})")
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(png_path, dpi=110)
-    plt.close(fig)
-    return Path(png_path)
+    return _save(fig, png_path, dpi=110)
 
 
 def capacity(json_path: Path, png_path: Path) -> Path:
@@ -346,10 +322,52 @@ def capacity(json_path: Path, png_path: Path) -> Path:
     axes[0][0].legend(fontsize=7, loc="lower left")
     fig.suptitle(f"Capacity vs demand ({data['coupling']} coupling, band {data['band_kpa'][1]:.0f}-"
                  f"{data['band_kpa'][0]:.0f} kPa, robot {data['robot_mass_kg']:.1f} kg)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(png_path, dpi=110)
-    plt.close(fig)
-    return Path(png_path)
+    return _save(fig, png_path, dpi=110)
+
+
+def _strides(episodes: list[dict], contact_threshold_n: float) -> tuple[np.ndarray | None, dict[str, list]]:
+    """Each leg's joint angles over its strides (touchdown to touchdown of its foot), in deg:
+    the gait-cycle grid (None without episodes) and per side a list of (k, points, 5) arrays."""
+    from pamrun.body import SIDES
+    from pamrun.gait import contacts, gait_cycle, touchdowns
+
+    strides = {side: [] for side in SIDES}
+    grid = None
+    for e in episodes:
+        s = e["steps"]
+        if not len(s["t_s"]):
+            continue
+        angle = np.rad2deg(np.asarray(s["joint_angle_rad"], float)).reshape(len(s["t_s"]), len(SIDES), -1)
+        for foot, (side, rows) in enumerate(zip(SIDES, touchdowns(contacts(s, contact_threshold_n)))):
+            grid, cycles = gait_cycle(angle[:, foot], rows)
+            strides[side].append(cycles)
+    return grid, strides
+
+
+def _footfalls(ax, episodes: list[dict], contact_threshold_n: float, footfall_s: float, colors: dict) -> None:
+    """Footfall diagram on ``ax``: when each foot is down in the first ``footfall_s`` s of the first episode."""
+    from pamrun.body import SIDES
+    from pamrun.gait import contacts
+
+    if episodes and len(episodes[0]["steps"]["t_s"]):
+        s = episodes[0]["steps"]
+        t = np.asarray(s["t_s"], float)
+        dt = float(np.median(np.diff(t))) if len(t) > 1 else float(t[0])
+        down = contacts(s, contact_threshold_n)
+        for foot, side in enumerate(SIDES):
+            edges = np.diff(np.concatenate(([0], down[:, foot].astype(int), [0])))
+            runs = [(t[a] - dt, (b - a) * dt) for a, b in zip(np.flatnonzero(edges > 0), np.flatnonzero(edges < 0))]
+            ax.broken_barh([r for r in runs if r[0] < footfall_s], (1 - foot - 0.35, 0.7), color=colors[side])
+        first = episodes[0]
+        label = f"episode {first.get('episode', 0)}" + (f", seed {first['seed']}" if "seed" in first else "")
+        ax.set_xlim(0, min(footfall_s, t[-1]))
+    else:
+        label = "no steps"
+    ax.set_yticks([1, 0], [f"{side} foot" for side in SIDES])
+    ax.set_ylim(-0.6, 1.6)
+    ax.set_xlabel("time [s]")
+    ax.set_title(f"Footfalls ({label}; foot down above {contact_threshold_n:.0f} N)", fontsize=10)
+    ax.grid(alpha=0.3, axis="x")
 
 
 def gait(episodes: list[dict], joint_limits_rad, contact_threshold_n: float, png_path: Path,
@@ -365,21 +383,10 @@ def gait(episodes: list[dict], joint_limits_rad, contact_threshold_n: float, png
     ``footfall_s`` seconds of the first episode.
     """
     from pamrun.body import LEG_JOINTS, SIDES
-    from pamrun.gait import contacts, gait_cycle, touchdowns
 
     limits = np.rad2deg(np.asarray(joint_limits_rad, float).reshape(-1, 2))
     colors = {"right": "tab:blue", "left": "tab:red"}
-    strides = {side: [] for side in SIDES}  # per side: (k, points, 5) arrays in deg
-    grid = None
-    for e in episodes:
-        s = e["steps"]
-        if not len(s["t_s"]):
-            continue
-        angle = np.rad2deg(np.asarray(s["joint_angle_rad"], float)).reshape(len(s["t_s"]), len(SIDES), -1)
-        for foot, (side, rows) in enumerate(zip(SIDES, touchdowns(contacts(s, contact_threshold_n)))):
-            grid, cycles = gait_cycle(angle[:, foot], rows)
-            strides[side].append(cycles)
-
+    grid, strides = _strides(episodes, contact_threshold_n)
     fig = plt.figure(figsize=(3.2 * len(LEG_JOINTS), 6.4))
     grid_spec = fig.add_gridspec(2, len(LEG_JOINTS), height_ratios=(2.2, 1.0))
     for j, joint in enumerate(LEG_JOINTS):
@@ -406,32 +413,10 @@ def gait(episodes: list[dict], joint_limits_rad, contact_threshold_n: float, png
             if drawn:
                 ax.legend(fontsize=7)
 
-    ax = fig.add_subplot(grid_spec[1, :])
-    if episodes and len(episodes[0]["steps"]["t_s"]):
-        s = episodes[0]["steps"]
-        t = np.asarray(s["t_s"], float)
-        dt = float(np.median(np.diff(t))) if len(t) > 1 else float(t[0])
-        down = contacts(s, contact_threshold_n)
-        for foot, side in enumerate(SIDES):
-            edges = np.diff(np.concatenate(([0], down[:, foot].astype(int), [0])))
-            runs = [(t[a] - dt, (b - a) * dt) for a, b in zip(np.flatnonzero(edges > 0), np.flatnonzero(edges < 0))]
-            ax.broken_barh([r for r in runs if r[0] < footfall_s], (1 - foot - 0.35, 0.7), color=colors[side])
-        first = episodes[0]
-        label = f"episode {first.get('episode', 0)}" + (f", seed {first['seed']}" if "seed" in first else "")
-        ax.set_xlim(0, min(footfall_s, t[-1]))
-    else:
-        label = "no steps"
-    ax.set_yticks([1, 0], [f"{side} foot" for side in SIDES])
-    ax.set_ylim(-0.6, 1.6)
-    ax.set_xlabel("time [s]")
-    ax.set_title(f"Footfalls ({label}; foot down above {contact_threshold_n:.0f} N)", fontsize=10)
-    ax.grid(alpha=0.3, axis="x")
+    _footfalls(fig.add_subplot(grid_spec[1, :]), episodes, contact_threshold_n, footfall_s, colors)
     fig.suptitle(f"Gait: joint angles over each leg's stride (touchdown to touchdown of its foot), mean ± std "
                  f"of {len(episodes)} episodes; dashed: the stops", fontsize=11)
-    fig.tight_layout()
-    fig.savefig(png_path, dpi=110)
-    plt.close(fig)
-    return Path(png_path)
+    return _save(fig, png_path, dpi=110)
 
 
 def robustness(json_path: Path, png_path: Path) -> Path:
@@ -454,7 +439,4 @@ def robustness(json_path: Path, png_path: Path) -> Path:
     fig.colorbar(image, ax=ax, label="walk-test pass rate", fraction=0.025, pad=0.01)
     ax.set_title(f"Robustness: walk-test passes of {data['episodes']} episodes per cell, seeds "
                  f"{data['seeds'][0]}..{data['seeds'][1]} (95 % Wilson interval)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(png_path, dpi=110)
-    plt.close(fig)
-    return Path(png_path)
+    return _save(fig, png_path, dpi=110)

@@ -4,9 +4,7 @@ up to (the walk and stand tests, the pass count with its 95 % Wilson interval, m
 spreads). Below :mod:`pamrun.evaluate` (``pamrun eval``: ranking, files, figures, suites) and
 used by ``pamrun train``'s evaluations through it.
 
-An episode's **walk test** (thesis §10.3): it lasts ``eval.walk_duration_s`` without a
-fall, never leaves |y| <= ``eval.walk_lateral_m`` and ends ``eval.walk_distance_m`` forward.
-Its gait and air metrics are :mod:`pamrun.gait`'s.
+An episode's walk and stand tests are :mod:`pamrun.task`'s. Its gait and air metrics are :mod:`pamrun.gait`'s.
 """
 
 from __future__ import annotations
@@ -24,6 +22,7 @@ import numpy as np
 
 from pamrun.checkpoints import ENV_SECTIONS, Agent
 from pamrun.gait import GAIT_METRICS, GaitSpec, episode_metrics
+from pamrun.task import stood, walk_passed
 
 # --------------------------------------------------------------------------- the agent's env
 
@@ -250,20 +249,6 @@ def evaluate_agents(agents: list[Agent], kwargs: list[dict], episodes: int, seed
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
     return results
-
-
-def walk_passed(episode: dict, ecfg) -> bool:
-    """The walk test of one episode (thesis §10.3 and its abstract): ``ecfg.walk_duration_s``
-    without a fall, never leaving |y| <= ``ecfg.walk_lateral_m``, at least
-    ``ecfg.walk_distance_m`` forward, and no physics blow-up (whose distances mean nothing)."""
-    return (stood(episode, ecfg) and episode["max_abs_y_m"] <= ecfg.walk_lateral_m
-            and episode["distance_m"] >= ecfg.walk_distance_m)
-
-
-def stood(episode: dict, ecfg) -> bool:
-    """The episode lasted ``ecfg.walk_duration_s`` without a fall or a physics blow-up."""
-    return (not episode["fell"] and not episode.get("physics_error", False)
-            and episode["duration_s"] >= ecfg.walk_duration_s - 1e-9)
 
 
 # Per-episode metric -> name of its aggregates (<name>_mean, <name>_std).

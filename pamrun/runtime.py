@@ -1,4 +1,5 @@
-"""What a running pamrun process needs to know about its machine, and the config resolvers.
+"""What a running pamrun process needs to know about its machine and its signals, and the
+config resolvers.
 
 Kept apart from :mod:`pamrun.config` (plain data, the bottom layer) because it asks the
 operating system. Importing it registers the resolvers that ``conf/sweep.yaml`` and the
@@ -8,7 +9,9 @@ in worker processes have them too).
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 
 from omegaconf import OmegaConf
 
@@ -24,6 +27,28 @@ def usable_cores() -> int:
 def parallel_jobs(jobs: int, workers_per_job: int) -> int:
     """Sweep jobs to run side by side: ``jobs``, or (0) the cores each job's workers leave."""
     return int(jobs) if int(jobs) > 0 else max(1, usable_cores() // max(1, int(workers_per_job)))
+
+
+class Terminated(Exception):
+    """SIGTERM (a scheduler's time limit, ``kill``): stop like Ctrl-C, with a final checkpoint."""
+
+
+def _terminate(signum, frame) -> None:
+    raise Terminated()
+
+
+@contextlib.contextmanager
+def stop_signals():
+    """SIGTERM raises :class:`Terminated` and SIGINT KeyboardInterrupt inside, even when whatever
+    started pamrun ignored SIGINT (a script's `cmd &`, some CI runners: Python then keeps SIG_IGN
+    and the run would train on to its budget)."""
+    previous = {signal.SIGTERM: signal.signal(signal.SIGTERM, _terminate),
+                signal.SIGINT: signal.signal(signal.SIGINT, signal.default_int_handler)}
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
 
 
 OmegaConf.register_new_resolver("pamrun_jobs", parallel_jobs, replace=True)

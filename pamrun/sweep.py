@@ -35,6 +35,7 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
 from pamrun.config import JOB_METRICS
+from pamrun.rundir import RunFiles, read_episodes, saved_config
 from pamrun.runio import read_json, write_json
 from pamrun.runtime import usable_cores  # importing it registers the resolvers of conf/sweep.yaml
 
@@ -127,11 +128,11 @@ def run_job(dcfg: DictConfig, out: Path, hc) -> dict:
     dcfg = copy.deepcopy(dcfg)
     if not cfg.train.threads:
         dcfg.train.threads = max(1, share - cfg.train.workers + 1)
-    run = read_json(out / "run.json")
-    if run.get("status") not in FINISHED_TRAINING:
-        if (out / "checkpoints" / "last.pt").exists():
+    files = RunFiles(out)
+    if read_json(files.run_json).get("status") not in FINISHED_TRAINING:
+        if files.last.exists():
             dcfg.resume = str(out)
-        train(dcfg)
+        train(to_object(dcfg), out, list(hc.overrides.task))
     if not (out / "eval" / "selection.json").exists():
         if not cfg.eval.workers:
             cfg.eval.workers = share
@@ -156,13 +157,13 @@ def job_metrics(job_dir: Path) -> dict[str, float | None]:
     """What the summary compares, from the files a job left (episodes.csv, eval/)."""
     from pamrun.config import Config
 
-    rows = list(csv.DictReader((job_dir / "episodes.csv").open())) if (job_dir / "episodes.csv").exists() else []
-    cfg = OmegaConf.load(job_dir / "pamrun_config.yaml") if (job_dir / "pamrun_config.yaml").exists() else \
-        OmegaConf.structured(Config)
+    files = RunFiles(job_dir)
+    rows = read_episodes(job_dir) if files.episodes.exists() else []
+    cfg = saved_config(job_dir) if files.config.exists() else Config()
     threshold = float(cfg.train.save_threshold)
     first_save = next((int(r["frames"]) for r in rows if float(r["reward"]) >= threshold), None)
     agents = read_json(job_dir / "eval" / "leaderboard.json").get("agents", [])
-    run = read_json(job_dir / "run.json")
+    run = read_json(files.run_json)
     return {
         "final_avg_reward": float(rows[-1]["avg_reward"]) if rows else None,
         "best_distance_m": max((a["distance_mean"] for a in agents), default=None),
@@ -258,7 +259,7 @@ def summarize(sweep_dir: Path, exclude: list[str], metric: str = "final_avg_rewa
     verdict = compare(rows, metric, direction)
     failed = [{"job": j["job"], "error": j.get("error", j["status"])} for j in jobs if j["status"] != "done"]
     write_summary_files(sweep_dir, rows, common, verdict, failed)
-    curves = [(r["setting"], [Path(d) / "episodes.csv" for d in r["job_dirs"]]) for r in rows]
+    curves = [(r["setting"], [RunFiles(d).episodes for d in r["job_dirs"]]) for r in rows]
     plots.sweep_curves(curves, sweep_dir / "curves.png")
     return {"rows": rows, "common": sorted(common), "verdict": verdict, "failed": failed, "jobs": len(jobs)}
 

@@ -209,6 +209,44 @@ def test_sac_log_probability_is_the_squashed_gaussian():
     assert torch.equal(actor(obs), torch.tanh(actor.net[4](h)))  # forward: the deterministic policy
 
 
+def _hand_written_tanh_gaussian(actor, obs):
+    """SAC's sample as pamrun wrote it before TorchRL's TanhNormal: u = mean + std * noise,
+    a = tanh(u), log N(u; mean, std) - log(1 - tanh(u)^2) in softplus form, summed per action."""
+    h = actor.net[:4](obs)
+    mean = actor.net[4](h)
+    log_std = actor.log_std_head(h).clamp(*actor.LOG_STD_RANGE)
+    u = mean + log_std.exp() * torch.randn_like(mean)
+    log_prob = (-0.5 * ((u - mean) / log_std.exp()) ** 2 - log_std - 0.5 * math.log(2 * math.pi)
+                - 2.0 * (math.log(2.0) - u - torch.nn.functional.softplus(-2.0 * u)))
+    return torch.tanh(u), log_prob.sum(-1, keepdim=True)
+
+
+def test_sac_sample_is_the_hand_written_tanh_gaussian():
+    """pamrun's sample (TorchRL's TanhNormal) draws the same actions from the same generator state
+    as the hand-written tanh-Gaussian, bit for bit, with the same log-probabilities and gradients
+    to float precision, saturated actions (|a| = 1 in float32) included."""
+    torch.manual_seed(0)
+    actor = agents.SquashedGaussianActor(43, 10, (400, 300), 3e-3)
+    with torch.no_grad():  # means up to ~45 and a wider spread: a third of the actions saturate
+        actor.net[4].weight.mul_(2000)
+        actor.log_std_head.weight.mul_(3)
+    obs = torch.randn(512, 43)
+    results = []
+    for sample in (actor.sample, lambda o: _hand_written_tanh_gaussian(actor, o)):
+        actor.zero_grad()
+        torch.manual_seed(1)
+        action, log_prob = sample(obs)
+        (log_prob.sum() + action.sum()).backward()
+        results.append((action.detach(), log_prob.detach(), [p.grad.clone() for p in actor.parameters()]))
+    (action, log_prob, grads), (ref_action, ref_log_prob, ref_grads) = results
+    assert (ref_action.abs() == 1).float().mean() > 0.2
+    assert torch.equal(action, ref_action)
+    assert log_prob.shape == ref_log_prob.shape == (512, 1)
+    torch.testing.assert_close(log_prob, ref_log_prob, rtol=2e-6, atol=1e-5)
+    for grad, ref in zip(grads, ref_grads):
+        torch.testing.assert_close(grad, ref, rtol=1e-4, atol=1e-4)
+
+
 def test_sac_learns_its_critics_and_temperature():
     """SAC updates fit the critics, and alpha falls while the policy's entropy is above its target."""
     torch.manual_seed(0)

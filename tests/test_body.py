@@ -59,6 +59,22 @@ def test_model_joints_and_limits():
     assert np.all(model.dof_damping[6:] == 1.0)
 
 
+def test_every_per_joint_table_follows_leg_joints():
+    """LEG_JOINTS (pamrun.config) is the one list of a leg's hinges: each per-joint config table
+    has one field per name, in its order (the YAML keys muscle.count.<joint>,
+    body.<joint>_limits_deg), and the body's joints are named from it."""
+    from dataclasses import fields
+
+    from pamrun.config import LEG_JOINTS, JointAngles, JointCounts, JointRadii
+
+    for table in (JointCounts, JointRadii, JointAngles):
+        assert tuple(f.name for f in fields(table)) == LEG_JOINTS, table.__name__
+    limits = tuple(f.name for f in fields(BodyConfig) if f.name.endswith("_limits_deg"))
+    assert limits == tuple(f"{joint}_limits_deg" for joint in LEG_JOINTS)
+    assert body.LEG_JOINTS is LEG_JOINTS
+    assert body.JOINTS == tuple(f"{side}_{joint}" for side in body.SIDES for joint in LEG_JOINTS)
+
+
 def test_only_foot_spheres_touch_the_floor():
     model = body.build_model(BodyConfig())
     floor = model.geom("floor").id

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from pamrun.actuation import MuscleDrive
-from pamrun.capacity import REQUIRED_MARGIN, analyse
-from pamrun.config import BodyConfig, ConfigError, JointCounts, MuscleConfig, upgrade_saved_config
+from pamrun.capacity import _BELOW, REQUIRED_MARGIN, WALKING_PEAK_NM_PER_KG, WALKING_RANGE_DEG, analyse
+from pamrun.config import LEG_JOINTS, BodyConfig, ConfigError, JointCounts, MuscleConfig, upgrade_saved_config
 from pamrun.env import PamWalkerEnv, space_sizes
 from tests.conftest import run_pamrun, thesis_muscle
 
@@ -19,6 +19,12 @@ from tests.conftest import run_pamrun, thesis_muscle
 @pytest.fixture(scope="module")
 def default_capacity():
     return analyse(MuscleConfig(), BodyConfig())
+
+
+def test_walking_tables_name_every_leg_joint():
+    """The demand tables are keyed by LEG_JOINTS, in its order; each joint's first word is a group."""
+    assert tuple(WALKING_PEAK_NM_PER_KG) == LEG_JOINTS == tuple(WALKING_RANGE_DEG)
+    assert {joint.split("_")[0] for joint in LEG_JOINTS} == set(_BELOW)
 
 
 def test_default_covers_walking_demand_with_margin(default_capacity):

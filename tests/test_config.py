@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from hydra.errors import ConfigCompositionException
 
-from pamrun.config import AlgoConfig, BodyConfig, ConfigError, MuscleConfig, TrainConfig, to_object
+from pamrun.config import AlgoConfig, BodyConfig, ConfigError, MuscleConfig, RewardConfig, TrainConfig, to_object
 from tests.conftest import compose_config, run_pamrun
 
 
@@ -122,7 +122,7 @@ def test_presets_hold_only_what_they_change():
 
     defaults = asdict(Config())
     checked = 0
-    for group in ("muscle", "body", "reward", "env", "algo", "train", "eval", "sweep"):
+    for group in ("experiment", "muscle", "body", "reward", "env", "algo", "train", "eval", "sweep"):
         for path in sorted((CONF_DIR / group).glob("*.yaml")):
             text = path.read_text()
             data = yaml.safe_load(text) or {}
@@ -130,9 +130,24 @@ def test_presets_hold_only_what_they_change():
             scope = defaults if text.startswith("# @package _global_") else defaults[group]  # e.g. train=walk
             assert _repeated_defaults(data, scope) == [], path.name
             checked += 1
-    assert checked >= 12
-    assert to_object(compose_config()).algo == AlgoConfig()  # algo=ddpg runs the dataclass' defaults
-    assert to_object(compose_config()).train == TrainConfig() and to_object(compose_config()).muscle == MuscleConfig()
+    assert checked >= 14
+    thesis_recipe = to_object(compose_config("experiment=thesis", "muscle=sized"))  # the dataclass' defaults
+    assert thesis_recipe.algo == AlgoConfig() and thesis_recipe.train == TrainConfig()
+    assert thesis_recipe.muscle == MuscleConfig() and thesis_recipe.reward == RewardConfig()
+
+
+def test_the_default_recipe_walks_and_the_thesis_is_one_word_away():
+    """``pamrun train`` with no arguments runs the walking recipe (experiment=walk);
+    ``experiment=thesis`` is the thesis' (muscle=thesis, DDPG, Tables 9.1-9.4); a group on the
+    command line wins over the experiment's choice."""
+    walk = to_object(compose_config())
+    assert (walk.algo.name, walk.algo.critic, walk.reward.kt, walk.train.walk_kvx) == ("td3", "concat", 400.0, 4.0)
+    assert walk.train.stop_on_walk and walk.env.reset_noise_rad == 0.02 and walk.muscle.size == "DMSP-40"
+    thesis = to_object(compose_config("experiment=thesis"))
+    assert thesis.algo == AlgoConfig() and thesis.train == TrainConfig() and thesis.reward == RewardConfig()
+    assert (thesis.muscle.size, thesis.muscle.coupling, thesis.algo.name) == ("DMSP-20", "thesis", "ddpg")
+    assert thesis.env.reset_noise_rad == 0.0 and thesis.train.max_episodes == 5000  # Table 9.4
+    assert to_object(compose_config("algo=ddpg")).algo.name == "ddpg"
 
 
 def test_every_config_field_has_a_doc():

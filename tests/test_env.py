@@ -81,18 +81,25 @@ def test_standing_feet_carry_the_weight(env):
     assert obs[31] + obs[32] == pytest.approx(1.0, abs=0.25)
 
 
-def test_reward_terms_match_hand_computation(env):
-    env.reset(seed=1)
+def test_reward_is_its_weights_times_unweighted_terms(env):
+    """info holds each term unweighted (``reward_unweighted``, REWARD_KEYS order) and weighted
+    (``reward_terms``, by weight name); the features are the state's quantities (Table 9.3's
+    Vx, y^2, (z - z0)^2, sum(a^2), Ts / Tf) and the reward is the weights' sum over them."""
+    from pamrun.env import REWARD_KEYS
+
+    _, info0 = env.reset(seed=1)
+    assert list(info0["reward_unweighted"]) == [0.0] * len(REWARD_KEYS)  # reset: the same keys, zeros
     action = np.linspace(-1, 1, 10).astype(np.float32)
     _, reward, _, _, info = env.step(action)
     u = env.unwrapped
-    vx = u.data.qvel[0]
-    y, z = u.data.qpos[1], u.data.qpos[2]
-    hand = 1.0 * vx - 4.0 * y**2 - 60.0 * (z - u.z0) ** 2 - 0.02 * np.sum(action.astype(float) ** 2) + 25 * 0.025 / 10
-    assert reward == pytest.approx(hand, rel=1e-6, abs=1e-9)
-    assert sum(info["reward_terms"].values()) == pytest.approx(reward)
-    assert info["reward_terms"]["kt"] == pytest.approx(0.0625)
-    assert set(info["reward_terms"]) == set(RewardConfig.__dataclass_fields__)  # a term per weight, same key
+    f = dict(zip(REWARD_KEYS, info["reward_unweighted"]))
+    assert f["kvx"] == u.data.qvel[0] and f["ky"] == -u.data.qpos[1] ** 2
+    assert f["kz"] == pytest.approx(-(u.data.qpos[2] - u.z0) ** 2, abs=1e-15)
+    assert f["kv"] == pytest.approx(-np.sum(action.astype(float) ** 2)) and f["kt"] == pytest.approx(0.025 / 10)
+    assert list(u.reward_weights) == [getattr(RewardConfig(), k) for k in REWARD_KEYS]
+    assert reward == pytest.approx(float(np.dot(u.reward_weights, info["reward_unweighted"])), rel=1e-12)
+    assert info["reward_terms"] == {k: w * f[k] for k, w in zip(REWARD_KEYS, u.reward_weights)}
+    assert info["reward_terms"]["kt"] == pytest.approx(0.0625)  # Table 9.3: kt Ts / Tf = 25 x 0.025 / 10
 
 
 def test_command_change_and_fall_terms():
@@ -247,9 +254,9 @@ def _episode_record(steps: int = 200, **muscle) -> dict[str, np.ndarray]:
             out[key].append(value)
         if terminated or truncated:
             e.reset()
-    kernel = e.drive._kernel
+    compiled = e.drive.compiled
     e.close()
-    return {"compiled": kernel is not None, **{k: np.array(v, dtype=float) for k, v in out.items()}}
+    return {"compiled": compiled, **{k: np.array(v, dtype=float) for k, v in out.items()}}
 
 
 @pytest.mark.parametrize("muscle", [{}, {"command": "independent"}, {"regulator": {"lag_s": 0.0}}],

@@ -17,7 +17,8 @@ from pamrun.config import ConfigError, to_object
 from pamrun.env import N_JOINTS, OBS_SIZE, PamWalkerEnv
 from pamrun.config import EvalConfig
 from pamrun.evaluate import load_agents, rank
-from pamrun.rollout import aggregate, env_kwargs, evaluate_agents, run_episode, stood, walk_passed
+from pamrun.rollout import aggregate, env_kwargs, evaluate_agents, run_episode
+from pamrun.task import stood, walk_passed
 from tests.conftest import compose_config, run_pamrun
 
 

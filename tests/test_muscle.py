@@ -69,6 +69,26 @@ def test_regulator_lag_is_first_order():
     assert reg.pressure_kpa[0] == pytest.approx(100 + 200 * (1 - np.exp(-1)), rel=1e-6)
 
 
+def test_regulator_hold_target_and_reset():
+    """The API a caller that computes the target itself uses (the compiled step): hold() tells a
+    new command (a new array) and checks its shape, step() then follows ``target_kpa`` as written,
+    reset() forgets the command; lag_factor is the exact first-order share 1 - exp(-dt / lag)."""
+    reg = Regulator(RegulatorConfig(lag_s=0.1), np.full((2, 2), 100.0))
+    voltage = np.full((2, 2), 3.0)
+    assert reg.hold(voltage) and not reg.hold(voltage)
+    voltage = voltage.copy()  # equal values, another array: a new command
+    assert reg.hold(voltage)
+    with pytest.raises(ValueError, match="shape"):
+        reg.hold(np.zeros(3))
+    reg.target_kpa[:] = 300.0  # as the kernel writes it
+    assert reg.step(voltage, 0.1)  # the held command: its target is not recomputed
+    np.testing.assert_allclose(reg.pressure_kpa, 100 + 200 * (1 - np.exp(-1)), rtol=1e-12)
+    assert reg.lag_factor(0.1) == pytest.approx(1 - np.exp(-1), rel=1e-15)
+    assert Regulator(RegulatorConfig(lag_s=0.0), np.zeros(2)).lag_factor(0.1) == 0.0
+    reg.reset(np.full((2, 2), 50.0))
+    assert reg.pressure_kpa.tolist() == [[50.0, 50.0]] * 2 and reg.hold(voltage)  # forgotten: new again
+
+
 def test_spring_table_bands():
     spring = SpringTable(thesis_muscle().spring)
     assert spring.band(np.array([0.0, 99.9, 100.0, 276.4, 800.0, 950.0])).tolist() == [0, 0, 1, 2, 7, 7]
@@ -159,7 +179,7 @@ def _drives(**muscle):
     from pamrun.env import PamWalkerEnv
 
     envs = [PamWalkerEnv(muscle={**muscle, "kernel": k}) for k in ("numba", "numpy")]
-    assert envs[0].drive._kernel is not None and envs[1].drive._kernel is None  # two paths, really
+    assert envs[0].drive.compiled and not envs[1].drive.compiled  # two paths, really
     for e in envs:
         e.reset(seed=0)
     return envs
@@ -191,7 +211,7 @@ def test_compiled_muscle_step_matches_numpy_step_by_step(lag_s):
         velocity = rng.uniform(-2, 2, 10)
         np.testing.assert_allclose(fast.drive.torques_nm(angle, velocity, 0.0),
                                    ref.drive.torques_nm(angle, velocity, 0.0), rtol=1e-12, atol=1e-9)
-        force = ref.drive.pairs.law.force_and_slope(ref.drive._coef, ref.drive.contraction_pct)[0]
+        force = ref.drive.pairs.law.force_and_slope(ref.drive.coupling.coef, ref.drive.contraction_pct)[0]
         slack += int((force <= 0).sum())
         pressure = ref.drive.pairs.regulator.pressure_kpa
         lowest, highest = min(lowest, pressure.min()), max(highest, pressure.max())

@@ -16,13 +16,36 @@ TINY = ["train=smoke", "train.max_frames=600", "train.init_random_frames=200", "
         "train.checkpoint_every_frames=200", "seed=1"]
 
 
+def train_here(run_dir, *overrides: str) -> str:
+    """``pamrun train overrides...`` in this process (no Hydra, no subprocess); its status."""
+    from pamrun.train import train
+
+    return train(to_object(compose_config(*overrides)), run_dir, list(overrides))
+
+
+def test_train_in_process_is_reproducible(tmp_path):
+    """``pamrun.train.train(cfg, out)`` runs in this process, with no Hydra: the same seed gives
+    the same episodes.csv, every column but wall time, also with the walking recipe's start-pose
+    noise (whose first episode once started from an unseeded reset), and a run.json that says so."""
+    from pamrun.rundir import read_episodes
+    from pamrun.train import train
+
+    cfg = to_object(compose_config(*TINY, "train.max_frames=400", "train.eval_every_frames=0"))
+    assert cfg.env.reset_noise_rad > 0 and cfg.algo.name == "td3"  # the default recipe: experiment=walk
+    runs = []
+    for name in ("a", "b"):
+        assert train(copy.deepcopy(cfg), tmp_path / name, ["seed=1"]) == "max_frames"
+        runs.append([{k: v for k, v in r.items() if k != "wall_time_s"} for r in read_episodes(tmp_path / name)])
+    assert len(runs[0]) > 2 and runs[0] == runs[1]
+    info = json.loads((tmp_path / "a" / "run.json").read_text())
+    assert info["command"] == "pamrun train seed=1" and info["frames"] == 400
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("algo", ["ddpg", "td3"])
 def test_train_leaves_its_files(tmp_path, algo):
     run_dir = tmp_path / algo
-    proc = run_pamrun("train", f"algo={algo}", *TINY, "train.save_threshold=-1e9", "train.keep_saved=2",
-                      f"hydra.run.dir={run_dir}")
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert train_here(run_dir, f"algo={algo}", *TINY, "train.save_threshold=-1e9", "train.keep_saved=2") == "max_frames"
     run = json.loads((run_dir / "run.json").read_text())
     assert run["status"] == "max_frames" and run["frames"] == 600 and run["algo"] == algo
     assert run["updates"] == 100  # (600 - 200) frames * 0.25
@@ -40,7 +63,6 @@ def test_train_leaves_its_files(tmp_path, algo):
     best = max(float(r["reward"]) for r in rows)
     metas = [torch.load(p, weights_only=True)["meta"] for p in saved]
     assert max(m["reward"] for m in metas) == pytest.approx(best, abs=1e-4)
-    assert (run_dir / ".hydra" / "config.yaml").exists()
 
 
 @pytest.mark.slow
@@ -49,6 +71,7 @@ def test_threshold_not_reached_saves_nothing(tmp_path):
     proc = run_pamrun("train", *TINY, "train.max_frames=400", "train.save_threshold=1e9", f"hydra.run.dir={run_dir}")
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert not list((run_dir / "checkpoints").glob("agent_*.pt"))
+    assert (run_dir / ".hydra" / "config.yaml").exists()  # the command: Hydra's run directory
 
 
 @pytest.mark.slow
@@ -127,8 +150,7 @@ def test_evaluations_during_training(tmp_path):
     from pamrun.checkpoints import find_checkpoints, load_agent
 
     run_dir = tmp_path / "evals"
-    proc = run_pamrun("train", "algo=td3", "train=smoke", "seed=2", f"hydra.run.dir={run_dir}")
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert train_here(run_dir, "algo=td3", "train=smoke", "seed=2") == "max_frames"
     rows = list(csv.DictReader((run_dir / "evals.csv").open()))
     assert [int(r["frames"]) for r in rows] == [400, 800, 1200]
     for r in rows:
@@ -189,17 +211,16 @@ def test_stop_on_walk(tmp_path):
 
 @pytest.mark.slow
 def test_resume_forgets_evaluations_after_the_checkpoint(tmp_path):
-    from pamrun.train import EvalLog
+    from pamrun.rundir import read_evals, truncate_logs
 
     run_dir = tmp_path / "r"
-    proc = run_pamrun("train", *TINY, "train.eval_every_frames=200", "train.eval_episodes=1", f"hydra.run.dir={run_dir}")
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    assert [r["frames"] for r in EvalLog.read(run_dir / "evals.csv")] == ["200", "400", "600"]
-    EvalLog.truncate(run_dir, 400)
-    assert [r["frames"] for r in EvalLog.read(run_dir / "evals.csv")] == ["200", "400"]
+    train_here(run_dir, *TINY, "train.eval_every_frames=200", "train.eval_episodes=1")
+    assert [r["frames"] for r in read_evals(run_dir)] == ["200", "400", "600"]
+    truncate_logs(run_dir, {"frames": 400, "episodes": 1})
+    assert [r["frames"] for r in read_evals(run_dir)] == ["200", "400"]
     (run_dir / "evals.csv").write_text("frames,walk_pass_rate\nten,x\n")
     with pytest.raises(SystemExit, match="evals.csv"):
-        EvalLog.truncate(run_dir, 400)
+        truncate_logs(run_dir, {"frames": 400, "episodes": 1})
 
 
 @pytest.mark.slow
@@ -207,8 +228,7 @@ def test_async_collection(tmp_path):
     """train.async_collection: the env steps in its own process; the run's files and counters are
     those of a synchronous run."""
     run_dir = tmp_path / "async"
-    proc = run_pamrun("train", "algo=td3", *TINY, "train.async_collection=true", f"hydra.run.dir={run_dir}")
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert train_here(run_dir, "algo=td3", *TINY, "train.async_collection=true") == "max_frames"
     run = json.loads((run_dir / "run.json").read_text())
     assert run["status"] == "max_frames" and run["frames"] == 600 and run["updates"] == 100
     rows = list(csv.DictReader((run_dir / "episodes.csv").open()))
@@ -216,12 +236,14 @@ def test_async_collection(tmp_path):
     assert sum(int(r["length"]) for r in rows) <= 600
 
 
-def test_walk_curriculum_relabels_to_the_reward_with_walk_kvx(cfg):
-    """``train.walk_kvx``: a relabelled transition's reward is the one the env pays with
-    reward.kvx = walk_kvx for the same step (same start, same actions)."""
-    from pamrun.train import WalkCurriculum, make_env
+def test_walk_curriculum_reweights_replay_samples_to_the_reward_with_walk_kvx(cfg):
+    """``train.walk_kvx``: once walking, a sample from the replay buffer has the reward the env
+    pays with reward.kvx = walk_kvx for the same step (same start, same actions), from the
+    unweighted terms the buffer stores; before, the env's own reward."""
+    from pamrun.curriculum import WalkCurriculum
+    from pamrun.train import make_buffer, make_env
 
-    cfg.train.walk_kvx, cfg.train.init_random_frames = 4.0, 1000
+    cfg.train.walk_kvx, cfg.train.init_random_frames, cfg.train.actor_start_frames = 4.0, 1000, 0
     rollouts = []
     for kvx in (cfg.reward.kvx, 4.0):
         walk_cfg = copy.deepcopy(cfg)
@@ -233,42 +255,47 @@ def test_walk_curriculum_relabels_to_the_reward_with_walk_kvx(cfg):
         env.close()
     base, walk = rollouts
     assert torch.equal(base["action"], walk["action"]) and len(base) > 10
-    curriculum = WalkCurriculum(cfg, [{"stand_rate": "1.0", "frames": "1000"}])  # the untrained actor stands: not yet
-    assert not curriculum.walking
-    relabelled = base.clone()
-    curriculum.relabel(relabelled)
-    assert torch.equal(relabelled["next", "reward"], base["next", "reward"])
     assert not torch.allclose(base["next", "reward"], walk["next", "reward"])
+    curriculum = WalkCurriculum(cfg)
+    buffer = make_buffer(cfg, curriculum)
+    buffer.extend(base)
+    curriculum.replay([{"stand_rate": "1.0", "frames": "1000"}])  # the untrained actor stands: not yet
+    assert not curriculum.walking
+    sample = buffer.sample(200)
+    assert torch.equal(sample["next", "reward"], base["next", "reward"][sample["index"]])
     assert curriculum.observe(0.9, 2000) is False and curriculum.observe(1.0, 2000) is True
     assert curriculum.observe(1.0, 3000) is False and curriculum.since == 2000  # it starts once
-    curriculum.relabel(relabelled)
-    assert torch.allclose(relabelled["next", "reward"], walk["next", "reward"], atol=1e-5)
-    assert WalkCurriculum(cfg, [{"stand_rate": "0.5", "frames": "1200"}, {"stand_rate": "1", "frames": "1400"}]).walking
+    sample = buffer.sample(200)
+    assert torch.allclose(sample["next", "reward"], walk["next", "reward"][sample["index"]], atol=1e-5)
+    assert torch.equal(buffer.storage[:len(base)]["next", "reward"], base["next", "reward"])  # the stored ones: the env's
+    resumed = WalkCurriculum(cfg)
+    resumed.replay([{"stand_rate": "0.5", "frames": "1200"}, {"stand_rate": "1", "frames": "1400"}])
+    assert resumed.walking and resumed.since == 1400
     cfg.train.walk_kvx = None
-    assert not WalkCurriculum(cfg, [{"stand_rate": "1", "frames": "1400"}]).walking
+    off = WalkCurriculum(cfg)
+    off.replay([{"stand_rate": "1", "frames": "1400"}])
+    assert not off.walking
 
 
 @pytest.mark.slow
-def test_walk_curriculum_in_a_run(tmp_path):
+def test_walk_curriculum_in_a_run(tmp_path, capsys):
     """A run with train.walk_kvx starts the walking stage at its first standing evaluation after
     the actor learns, says so, and records it in run.json and TensorBoard."""
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
     run_dir = tmp_path / "curriculum"
-    proc = run_pamrun("train", *TINY, "train.max_frames=1000", "train.eval_every_frames=200", "train.eval_episodes=1",
-                      "train.walk_kvx=4", "eval.episode_s=0.25", "eval.walk_duration_s=0.25", f"hydra.run.dir={run_dir}")
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    train_here(run_dir, *TINY, "train.max_frames=1000", "train.eval_every_frames=200", "train.eval_episodes=1",
+               "train.walk_kvx=4", "eval.episode_s=0.25", "eval.walk_duration_s=0.25")
     rows = list(csv.DictReader((run_dir / "evals.csv").open()))
     first = next(int(r["frames"]) for r in rows if float(r["stand_rate"]) == 1 and int(r["frames"]) > 200)
     assert first < 1000  # the learner then learns from relabelled samples of the collector's batches
     assert json.loads((run_dir / "run.json").read_text())["updates"] == 200
     assert json.loads((run_dir / "run.json").read_text())["walk_kvx_from_frames"] == first
-    assert "train.walk_kvx = 4" in proc.stdout
+    assert "train.walk_kvx = 4" in capsys.readouterr().out
     events = EventAccumulator(str(run_dir / "tensorboard")).Reload()
     assert [(e.step, e.value) for e in events.Scalars("curriculum/kvx")] == [(first, 4.0)]
-    proc = run_pamrun("train", f"resume={run_dir}", "train.max_frames=1200")  # the stage carries over a resume
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    assert f"Walking stage of the curriculum (since {first} frames)" in " ".join(proc.stdout.split())
+    train_here(run_dir, f"resume={run_dir}", "train.max_frames=1200")  # the stage carries over a resume
+    assert f"Walking stage of the curriculum since {first} frames" in " ".join(capsys.readouterr().out.split())
     proc = run_pamrun("train", "train.walk_kvx=4", "train.eval_every_frames=0", f"hydra.run.dir={tmp_path / 'x'}")
     assert proc.returncode != 0 and "train.walk_kvx" in proc.stderr + proc.stdout
 
@@ -277,7 +304,7 @@ def test_walk_curriculum_in_a_run(tmp_path):
 def test_resume_takes_a_new_budget_and_names_what_it_ignores(tmp_path):
     """``resume=<dir> train.max_frames=...`` extends a finished run; any other value on a resume's
     command line is named as ignored, and the run keeps its own config."""
-    from pamrun.train import saved_run_config
+    from pamrun.rundir import saved_config
 
     run_dir = tmp_path / "extend"
     proc = run_pamrun("train", *TINY, "train.eval_every_frames=0", f"hydra.run.dir={run_dir}")
@@ -288,7 +315,7 @@ def test_resume_takes_a_new_budget_and_names_what_it_ignores(tmp_path):
     assert "train.max_frames 600 -> 800" in out and "ignored" in out and "algo.actor_lr=0.5" in out
     run = json.loads((run_dir / "run.json").read_text())
     assert run["status"] == "max_frames" and run["frames"] == 800
-    saved = saved_run_config(run_dir)
-    assert saved.train.max_frames == 800 and saved.algo.actor_lr == 1e-3
+    saved = saved_config(run_dir)
+    assert saved.train.max_frames == 800 and saved.algo.actor_lr == 1e-4  # the walking recipe's
     proc = run_pamrun("train", f"resume={run_dir}")
     assert proc.returncode == 0 and "already finished its budget (800 frames" in " ".join(proc.stdout.split())

@@ -28,12 +28,14 @@ from pamrun.config.experiments import (JOB_METRICS, PERTURBABLE_SECTIONS, RANK_M
                                        Perturbation, StepExperiment, flatten,
                                        SweepConfig)
 from pamrun.config.learning import AlgoConfig, TrainConfig
-from pamrun.config.robot import (DYNAMICS_NAMES, FORCE_LAW_NAMES, SPRING_FILE, BodyConfig, JointAngles, JointCounts,
-                                 JointRadii, MuscleConfig, RegulatorConfig, SpringConfig, check_muscle_stretch)
+from pamrun.config.robot import (DYNAMICS_NAMES, FORCE_LAW_NAMES, LEG_JOINTS, SPRING_FILE, BodyConfig, JointAngles,
+                                 JointCounts, JointRadii, MuscleConfig, RegulatorConfig, SpringConfig,
+                                 check_muscle_stretch)
 from pamrun.config.task import EnvConfig, RewardConfig
 
 __all__ = ["CONF_DIR", "SPRING_FILE", "JOB_METRICS", "RANK_METRICS", "FORCE_LAW_NAMES", "DYNAMICS_NAMES", "ConfigError",
-           "Config", "RegulatorConfig", "SpringConfig", "MuscleConfig", "JointAngles", "JointCounts", "JointRadii",
+           "Config", "LEG_JOINTS", "RegulatorConfig", "SpringConfig", "MuscleConfig", "JointAngles", "JointCounts",
+           "JointRadii",
            "check_muscle_stretch", "BodyConfig", "RewardConfig", "EnvConfig", "AlgoConfig", "TrainConfig", "EvalConfig",
            "OptunaConfig", "Perturbation", "flatten", "PERTURBABLE_SECTIONS", "SweepConfig", "StepExperiment", "PairConfig", "register_configs", "validate", "to_object",
            "preset", "upgrade_saved_config"]
@@ -96,8 +98,8 @@ def _pre_sizing_muscle(muscle: dict) -> dict:
     most = float(muscle.pop("kinematic_max_contraction_pct", 13.0))
     muscle.setdefault("min_contraction_pct", 2 * rest - most)
     muscle.setdefault("size", "DMSP-20")
-    muscle.setdefault("count", {name: 1 for name in JointCounts.__dataclass_fields__})
-    muscle.setdefault("neutral_deg", {name: 0.0 for name in JointCounts.__dataclass_fields__})
+    muscle.setdefault("count", {name: 1 for name in LEG_JOINTS})
+    muscle.setdefault("neutral_deg", {name: 0.0 for name in LEG_JOINTS})
     muscle.setdefault("command", "antagonistic")
     for key, value in (("nominal_length_m", 0.26), ("max_pressure_kpa", 800.0), ("v0_v", 2.12),
                        ("dv_max_v", 0.71), ("coupling", "thesis")):

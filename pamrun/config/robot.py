@@ -8,6 +8,14 @@ from dataclasses import dataclass, field
 
 from pamrun.config.checks import CONF_DIR, _non_negative, _positive, _require
 
+# --------------------------------------------------------------------------- joints
+
+# The hinges of one leg, hip to ankle (thesis §8.1, Table 8.3): the one list of them. The
+# per-joint tables below (JointCounts, JointRadii, JointAngles and BodyConfig's
+# ``<joint>_limits_deg``) have one field per name, in this order (tests/test_body.py checks
+# it), and ``pamrun.body.JOINTS`` names each leg's hinges from it.
+LEG_JOINTS = ("hip_pitch", "hip_roll", "knee", "ankle_pitch", "ankle_roll")
+
 # --------------------------------------------------------------------------- muscle
 
 
@@ -115,7 +123,7 @@ KERNELS = ("numba", "numpy")
 
 @dataclass
 class JointCounts:
-    """Muscles in parallel per direction, per joint (both legs alike)."""
+    """Muscles in parallel per direction, per joint (both legs alike); one field per LEG_JOINTS name."""
 
     hip_pitch: int = 1  # hip flexion/extension
     hip_roll: int = 1  # hip abduction/adduction
@@ -130,7 +138,9 @@ class JointCounts:
 
 @dataclass
 class JointRadii:
-    """Pulley radius per joint [mm]; 0 = automatic (see MuscleConfig.min_contraction_pct)."""
+    """Pulley radius per joint [mm]; 0 = automatic (see MuscleConfig.min_contraction_pct).
+
+    One field per LEG_JOINTS name."""
 
     hip_pitch: float = 0.0  # hip pitch
     hip_roll: float = 0.0  # hip roll
@@ -145,7 +155,9 @@ class JointRadii:
 
 @dataclass
 class JointAngles:
-    """Per-joint angle [deg] at which both muscles of the pair sit at their rest contraction."""
+    """Per-joint angle [deg] at which both muscles of the pair sit at their rest contraction.
+
+    One field per LEG_JOINTS name."""
 
     hip_pitch: float = 0.0  # hip pitch
     hip_roll: float = 0.0  # hip roll
@@ -274,7 +286,7 @@ class MuscleConfig:
 
 def check_muscle_stretch(muscle: MuscleConfig, body: "BodyConfig") -> None:
     """An explicit pulley radius must not stretch a muscle past ``min_contraction_pct``."""
-    for joint in JointRadii.__dataclass_fields__:
+    for joint in LEG_JOINTS:
         reach = muscle.reach_rad(joint, getattr(body, f"{joint}_limits_deg"))
         radius = muscle.radius_m(joint, reach)
         stretched = muscle.kinematic_rest_contraction_pct - 100.0 * radius * reach / muscle.nominal_length_m
@@ -294,9 +306,10 @@ def check_muscle_stretch(muscle: MuscleConfig, body: "BodyConfig") -> None:
 class BodyConfig:
     """Body generated from height and mass by anthropometric ratios (thesis §8.1-8.2).
 
-    Joint limits are degrees from the standing pose, for the left leg (Table 8.3); the
-    right leg mirrors the roll joints. What the thesis leaves open (pelvis block, hip
-    width, contact overlap) is documented field by field.
+    Joint limits are degrees from the standing pose, for the left leg (Table 8.3), one
+    ``<joint>_limits_deg`` field per LEG_JOINTS name; the right leg mirrors the roll joints.
+    What the thesis leaves open (pelvis block, hip width, contact overlap) is documented
+    field by field.
     """
 
     height_m: float = 1.80  # Table 8.2 reference
@@ -352,7 +365,7 @@ class BodyConfig:
         )
         _positive(self, "joint_limit_timeconst_s", "joint_limit_dampratio")
         _require(0.5 <= self.height_m <= 3.0, "height_m", f"must lie in [0.5, 3.0] m, got {self.height_m}")
-        for name in ("hip_pitch", "hip_roll", "knee", "ankle_pitch", "ankle_roll"):
+        for name in LEG_JOINTS:
             key = f"{name}_limits_deg"
             lo_hi = getattr(self, key)
             _require(
