@@ -296,7 +296,8 @@ def test_walk_curriculum_in_a_run(tmp_path, capsys):
     assert [(e.step, e.value) for e in events.Scalars("curriculum/kvx")] == [(first, 4.0)]
     train_here(run_dir, f"resume={run_dir}", "train.max_frames=1200")  # the stage carries over a resume
     assert f"Walking stage of the curriculum since {first} frames" in " ".join(capsys.readouterr().out.split())
-    proc = run_pamrun("train", "train.walk_kvx=4", "train.eval_every_frames=0", f"hydra.run.dir={tmp_path / 'x'}")
+    proc = run_pamrun("train", "train.walk_kvx=4", "train.eval_every_frames=0", "train.stop_on_walk=false",
+                      f"hydra.run.dir={tmp_path / 'x'}")
     assert proc.returncode != 0 and "train.walk_kvx" in proc.stderr + proc.stdout
 
 
