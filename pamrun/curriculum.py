@@ -6,9 +6,10 @@ order: :mod:`pamrun.env`), and training stores those features in its replay buff
 weights: r' = r + sum_k (w'_k - w_k) f_k. Transitions whose physics blew up have all features
 0, so they keep their reward (0). The env, its logs and ``pamrun eval`` keep the config's weights.
 
-:class:`WalkCurriculum` (``train.walk_kvx``): stand first, then walk. Until the "stand,
-learned" milestone (:func:`pamrun.task.stands_learned`) the learner optimises the env's
-reward; from it on, the forward weight is ``walk_kvx`` instead of ``reward.kvx``. The stage is a
+:class:`WalkCurriculum` (``train.walk_kvx``, ``train.walk_weights``): stand first, then walk.
+Until the "stand, learned" milestone (:func:`pamrun.task.stands_learned`) the learner
+optimises the env's reward; from it on, the forward weight is ``walk_kvx`` instead of
+``reward.kvx``, and every weight in ``walk_weights`` replaces the env's. The stage is a
 function of the run's evaluations (``evals.csv``), so a resumed run takes it up where it was.
 """
 
@@ -52,6 +53,8 @@ class WalkCurriculum:
 
     def __init__(self, cfg: Config):
         self.cfg, self.kvx, self.walking = cfg, cfg.train.walk_kvx, False
+        self.weights = {**{k: getattr(cfg.reward, k) for k in REWARD_KEYS}, **cfg.train.walk_weights,
+                        **({"kvx": self.kvx} if self.kvx is not None else {})}  # the walking stage's
         self.since: int | None = None  # frames of the evaluation that started the walking stage
         self.transform = Reweight([getattr(cfg.reward, k) for k in REWARD_KEYS])
 
@@ -62,13 +65,19 @@ class WalkCurriculum:
 
     def observe(self, stand_rate: float, frames: int) -> bool:
         """Take an evaluation into account; True when it starts the walking stage."""
-        if self.kvx is None or self.walking or not stands_learned(stand_rate, frames, self.cfg):
+        if not self.active or self.walking or not stands_learned(stand_rate, frames, self.cfg):
             return False
         self.walking, self.since = True, frames
-        self.transform.set_weights([self.kvx if k == "kvx" else getattr(self.cfg.reward, k) for k in REWARD_KEYS])
+        self.transform.set_weights([self.weights[k] for k in REWARD_KEYS])
         return True
 
+    @property
+    def active(self) -> bool:
+        return self.kvx is not None or bool(self.cfg.train.walk_weights)
+
     def describe(self) -> str:
+        changed = ", ".join(f"{k} {getattr(self.cfg.reward, k):g} -> {w:g}" for k, w in self.weights.items()
+                            if w != getattr(self.cfg.reward, k))
         return (f"Walking stage of the curriculum since {self.since} frames, when it first stood in every "
-                f"evaluation episode: the learner's forward weight is train.walk_kvx = {self.kvx:g} "
-                f"(the env's reward.kvx = {self.cfg.reward.kvx:g}).")
+                f"evaluation episode: the learner's weights {changed} (train.walk_kvx = {self.kvx}, "
+                f"train.walk_weights; the env keeps reward.*).")

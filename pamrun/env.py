@@ -38,19 +38,22 @@ Python per physics step.
 
 ## Reward (thesis Table 9.3, config group ``reward``)
 r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf - kda sum((a_prev - a_prev2)^2)
-- kfall [fell], with Vx the torso's forward velocity, y its lateral deviation, z - z0 its
-height change since reset, a_prev the action applied in this step (the "previous action"
-of the next observation) and a_prev2 the one before it (zero at reset). The last two terms
-are not the thesis' (their weights are 0 by default): ``kda`` penalises changes of the
-command, for the smoother gait the thesis asked for, and ``kfall`` is paid once, on the
-step that ends the episode by a fall.
+- kfall [fell] - kstop n_stop / 8 + kspeed exp(-((Vx - v*) / sigma)^2), with Vx the torso's forward velocity, y its lateral
+deviation, z - z0 its height change since reset, a_prev the action applied in this step (the
+"previous action" of the next observation) and a_prev2 the one before it (zero at reset).
+The last four terms are not the thesis' (their weights are 0 by default): ``kda`` penalises
+changes of the command, for the smoother gait the thesis asked for; ``kfall`` is paid once,
+on the step that ends the episode by a fall; ``kstop`` penalises the share n_stop / 8 of the
+hip and ankle joints within 2 deg of a stop (:data:`pamrun.gait.STOP_MARGIN_DEG`; the knees
+rest on their extension stop by design, their lock in stance); ``kspeed`` pays for walking
+near ``env.target_speed_m_s`` (v*, within ``env.speed_sigma_m_s``) rather than ever faster.
 
 Every term is a weight times an unweighted feature, and this is the formula's one home
 (:meth:`PamWalkerEnv.reward_features`, :data:`REWARD_KEYS`, MyoSuite's style): the features are
-Vx, -y^2, -(z - z0)^2, -sum(a_prev^2), Ts / Tf, -sum((a_prev - a_prev2)^2) and -[fell], all 0 in a
-step whose physics blew up. ``info["reward_terms"]`` holds the weighted terms under the key of
+Vx, -y^2, -(z - z0)^2, -sum(a_prev^2), Ts / Tf, -sum((a_prev - a_prev2)^2), -[fell] and
+-n_stop / 8 and exp(-((Vx - v*) / sigma)^2), all 0 in a step whose physics blew up. ``info["reward_terms"]`` holds the weighted terms under the key of
 their weight (``kvx``: forward, ``ky``: lateral, ``kz``: height, ``kv``: effort, ``kt``: alive,
-``kda``: command change, ``kfall``: fall), so a term and the ``reward.<key>`` that scales it
+``kda``: command change, ``kfall``: fall, ``kstop``: joint stops, ``kspeed``: speed), so a term and the ``reward.<key>`` that scales it
 share one name; ``info["reward_unweighted"]`` holds the features in ``REWARD_KEYS`` order and
 ``env.reward_weights`` the weights, so a learner can re-weight any term after the fact
 (pamrun's training stores the features in its replay buffer: :mod:`pamrun.curriculum`).
@@ -94,8 +97,9 @@ import mujoco  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
 
 from pamrun import body as body_mod  # noqa: E402
-from pamrun.actuation import MuscleDrive, n_actions  # noqa: E402
+from pamrun.actuation import MuscleDrive, joint_limits_rad, n_actions  # noqa: E402
 from pamrun.config import BodyConfig, EnvConfig, MuscleConfig, RewardConfig, to_object  # noqa: E402
+from pamrun.gait import STOP_MARGIN_DEG  # noqa: E402
 from pamrun.task import fell as fell_rule  # noqa: E402
 
 N_JOINTS = len(body_mod.JOINTS)  # the hinges, pamrun.config.LEG_JOINTS on each side
@@ -221,6 +225,9 @@ class PamWalkerEnv(gym.Env):
         self.observation_structure = observation_structure(self.n_actions)
         self._prev_action = np.zeros(self.n_actions)
         self._joint_angles = operator.itemgetter(*self._qpos_idx.tolist())  # from qpos as a list
+        margin = math.radians(STOP_MARGIN_DEG)
+        self._stops_rad = joint_limits_rad(self.body_cfg) + [margin, -margin]  # 'at a stop' below / above these
+        self._not_knee = np.array(["knee" not in name for name in body_mod.JOINTS])
         self._joint_velocities = operator.itemgetter(*self._qvel_idx.tolist())
         self._steps = 0
         self._x0 = 0.0
@@ -337,7 +344,16 @@ class PamWalkerEnv(gym.Env):
                 -float(np.add.reduce(action * action)),  # = np.sum(action**2), bit for bit
                 cfg.control_dt_s / cfg.episode_s,
                 -float(np.add.reduce((action - (action if previous is None else previous)) ** 2)),
-                -float(fell)]
+                -float(fell),
+                -self.stop_share((self._state() if state is None else state)[0]),
+                math.exp(-(((vx - cfg.target_speed_m_s) / cfg.speed_sigma_m_s) ** 2))]
+
+    def stop_share(self, qpos: list[float]) -> float:
+        """Share of the hip and ankle joints within gait.STOP_MARGIN_DEG of a stop (``kstop``'s term;
+        the knees rest on their extension stop by design: their lock in stance)."""
+        angle = np.array(self._joint_angles(qpos))
+        at_stop = (angle <= self._stops_rad[:, 0]) | (angle >= self._stops_rad[:, 1])
+        return float(at_stop[self._not_knee].mean())
 
     def _reward(self, action: np.ndarray, physics_error: bool, state: _State | None = None,
                 previous: np.ndarray | None = None, fell: bool = False) -> tuple[float, dict[str, float], list[float]]:

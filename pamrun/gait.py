@@ -56,6 +56,8 @@ import numpy as np
 from pamrun.body import GRAVITY, JOINTS, LEG_JOINTS, SIDES
 from pamrun.muscle import MUSCLE_INNER_DIAMETER_M, air_nl
 
+STOP_MARGIN_DEG = 2.0  # a joint 'at its stop': within this of a limit (issue 21's gait target; reward.kstop)
+
 RIGHT, LEFT = 0, 1  # foot columns of foot_force_n / foot_xyz_m
 
 GAIT_METRICS = (
@@ -96,7 +98,7 @@ class GaitSpec:
     inner_diameter_m: float  # muscle inner diameter D0
     gravity_m_s2: float = GRAVITY
     contact_threshold_n: float | None = None  # None: CONTACT_WEIGHT_SHARE of the weight
-    stop_margin_rad: float = math.radians(2.0)  # 'at the stop': within 2 deg of a limit
+    stop_margin_rad: float = math.radians(STOP_MARGIN_DEG)
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__  # frozen

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from pamrun import agents, checkpoints, plots, rundir
+from pamrun import agents, checkpoints, plots, randomize, rundir
 from pamrun.config import Config
 from pamrun.curriculum import FEATURES, WalkCurriculum
 from pamrun.rundir import EVAL_FIELDS, CsvLog, EpisodeLog, RunFiles
@@ -37,22 +37,22 @@ check_config = rundir.check_resume  # pamrun.cli runs it before any directory ex
 
 
 def make_env(cfg: Config, seed: int | None = None):
-    """PamWalker-v0 with this config in TorchRL's GymWrapper (its ``GymEnv`` reserves the keyword
-    ``env``), reading ``distance``, ``physics_error`` and the reward's unweighted terms from info;
-    ``seed`` seeds it before a collector's first reset (else its start noise comes from the OS)."""
+    """PamWalker-v0 with this config (redrawn per episode with ``train.randomize``) in TorchRL's
+    GymWrapper (its ``GymEnv`` reserves the keyword ``env``), reading ``distance``, ``physics_error``
+    and the reward's unweighted terms from info; ``seed`` seeds it before a collector's first
+    reset (else its start noise comes from the OS)."""
     import gymnasium as gym
-    from torchrl.envs import GymWrapper
     from torchrl.data import Unbounded
+    from torchrl.envs import GymWrapper
     from torchrl.envs.gym_like import default_info_dict_reader
 
-    from pamrun.env import REWARD_KEYS
-
     import pamrun  # noqa: F401  (registers the env in worker processes too)
+    from pamrun.env import REWARD_KEYS
+    from pamrun.randomize import RandomizedWalker
 
-    env = GymWrapper(gym.make(
-        "pamrun/PamWalker-v0",
-        body=asdict(cfg.body), muscle=asdict(cfg.muscle), reward=asdict(cfg.reward), env=asdict(cfg.env),
-    ))
+    kwargs, t = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}, cfg.train
+    env = GymWrapper(RandomizedWalker(kwargs, {n: cfg.eval.perturbations[n] for n in t.randomize}, t.randomize_prob,
+                                      t.randomize_reach) if t.randomize else gym.make("pamrun/PamWalker-v0", **kwargs))
     spec = {"distance": Unbounded((), dtype=torch.float64), "physics_error": Unbounded((), dtype=torch.bool),
             FEATURES: Unbounded((len(REWARD_KEYS),), dtype=torch.float64)}  # what the env's info holds
     env.set_info_dict_reader(default_info_dict_reader(list(spec), spec=spec))
@@ -106,6 +106,7 @@ def train(cfg: Config, out: Path, overrides: list[str] = ()) -> str:
     from pamrun.runio import console as make_console
 
     console = make_console()
+    randomize.check(cfg)  # before anything is written
     cfg, resuming = rundir.open_run(cfg, out, console, overrides)
     for seed in (random.seed, np.random.seed, torch.manual_seed):  # Python's, numpy's and torch's generators
         seed(cfg.seed)

@@ -27,7 +27,10 @@ def header_table(cfg: Config, out: Path):
                       + (f"initial alpha {a.init_alpha:g}" if a.name == "sac" else f"noise var {a.noise_variance:g}")),
         ("robot", f"H {cfg.body.height_m} m, M {cfg.body.mass_kg} kg, coupling {cfg.muscle.coupling}"),
         ("reward", ", ".join(f"{k} {w:g}" for k, w in asdict(cfg.reward).items())  # every weight
-                   + (f"; kvx {t.walk_kvx:g} once it stands (train.walk_kvx)" if t.walk_kvx is not None else "")),
+                   + (f"; kvx {t.walk_kvx:g} once it stands (train.walk_kvx)" if t.walk_kvx is not None else "")
+                   + "".join(f"; {k} {w:g} once it stands" for k, w in t.walk_weights.items())),
+        ("randomised", (f"{t.randomize_prob:.0%} of episodes: {', '.join(t.randomize)} (strength 0-{t.randomize_reach:g})"
+                        if t.randomize else "no")),
         ("budget", f"{t.max_frames} frames / {t.max_episodes} episodes"
                    + (f" / {t.max_minutes:g} min" if t.max_minutes else "")
                    + (f", stop at average {t.target_avg_reward:g}" if t.target_avg_reward else "")),

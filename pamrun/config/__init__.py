@@ -66,6 +66,9 @@ class Config:
     def __post_init__(self) -> None:
         _require(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
         _require(self.format in ("onnx", "torchscript"), "format", f"must be onnx or torchscript, got {self.format!r}")
+        for name in self.train.randomize:
+            _require(name in self.eval.perturbations, "train.randomize",
+                     f"unknown perturbation {name!r}; known (eval.perturbations): {', '.join(self.eval.perturbations)}")
         try:
             check_muscle_stretch(self.muscle, self.body)
         except ConfigError as err:

@@ -15,7 +15,8 @@ class RewardConfig:
     """Per-step reward weights (thesis Table 9.3).
 
     r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf
-          - kda sum((a_prev - a_prev2)^2) - kfall [fell]   (the last two: 0 in the thesis)
+          - kda sum((a_prev - a_prev2)^2) - kfall [fell] - kstop n_stop / n
+          + kspeed exp(-((Vx - v*) / sigma)^2)   (the last four: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -26,9 +27,11 @@ class RewardConfig:
     # Beyond Table 9.3 (0 = the thesis' reward):
     kda: float = 0.0  # weight of the squared command change sum((a - a_prev)^2), for a smoother gait
     kfall: float = 0.0  # penalty paid once, on the step an episode ends by a fall
+    kstop: float = 0.0  # weight of the share of hip and ankle joints within 2 deg of a stop (the knees' is their lock)
+    kspeed: float = 0.0  # weight of the speed tracking exp(-((Vx - env.target_speed_m_s) / env.speed_sigma_m_s)^2)
 
     def __post_init__(self) -> None:
-        for name in ("kvx", "ky", "kz", "kv", "kt", "kda", "kfall"):
+        for name in ("kvx", "ky", "kz", "kv", "kt", "kda", "kfall", "kstop", "kspeed"):
             _require(math.isfinite(getattr(self, name)), name, "must be finite")
 
 
@@ -46,6 +49,8 @@ class EnvConfig:
     fall_height_ratio: float = 0.6  # fall when torso z < ratio * standing torso z
     max_lateral_m: float = 0.5  # |y| band (§9.5 trajectories)
     max_tilt_rad: float = math.pi / 4  # |roll|, |pitch|, |yaw| limit (example's check)
+    target_speed_m_s: float = 1.0  # v*: the speed reward.kspeed pays most for (the thesis' agents walked 0.6-1.1 m/s)
+    speed_sigma_m_s: float = 0.5  # sigma: how fast reward.kspeed's pay falls off around v*
     reset_noise_rad: float = 0.0  # uniform noise on joint angles at reset
     reset_velocity_noise: float = 0.0  # uniform noise on joint velocities [rad/s]
     # Perturbations (pamrun eval's robustness suite uses them; a user can train under them too):
@@ -55,7 +60,7 @@ class EnvConfig:
     push_duration_s: float = 0.1  # how long it lasts [s], rounded to whole control steps (at least one)
 
     def __post_init__(self) -> None:
-        _positive(self, "control_dt_s", "episode_s", "physics_dt_s", "max_lateral_m", "max_tilt_rad")
+        _positive(self, "control_dt_s", "episode_s", "physics_dt_s", "max_lateral_m", "max_tilt_rad", "speed_sigma_m_s")
         _non_negative(self, "reset_noise_rad", "reset_velocity_noise", "observation_noise_std", "push_time_s")
         _positive(self, "push_duration_s")
         _require(len(self.push_impulse_ns) == 3 and all(math.isfinite(v) for v in self.push_impulse_ns),

@@ -1,0 +1,85 @@
+"""Domain randomisation during training (``train.randomize``): the robustness suite's
+perturbations, drawn per episode.
+
+Each episode, with probability ``train.randomize_prob``, the robot and task are one of the
+perturbations named in ``train.randomize`` (defined in ``eval.perturbations``, the suite's
+own: mass, friction, regulator lag, top pressure, observation and start noise, pushes), at a
+strength s drawn uniformly in [0, ``train.randomize_reach``] of the way from the run's own
+config to it (:func:`pamrun.rollout.perturb`: a factor f becomes 1 + s (f - 1); s > 1 goes
+beyond the suite's size, for a margin). A push comes at a time drawn uniformly between 1 s
+and 1 s before the episode's end, so a policy cannot learn when it comes. Otherwise the
+episode is the run's nominal robot and task. The draws come from the env's own seeded
+generator, so a run stays reproducible.
+
+The env is rebuilt for a perturbed episode (the suite's mechanism, so training and testing
+perturb alike); the nominal one is kept and reused.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+
+from pamrun.config import Config
+from pamrun.env import PamWalkerEnv
+from pamrun.rollout import perturb
+
+PUSH_MARGIN_S = 1.0  # a randomised push starts at least this long after the start and before the end
+
+
+class RandomizedWalker(gym.Env):
+    """PamWalker-v0 whose robot and task are redrawn at every reset (module docstring)."""
+
+    metadata = PamWalkerEnv.metadata
+
+    def __init__(self, kwargs: dict[str, dict], perturbations: dict[str, Any], prob: float, reach: float):
+        self.kwargs, self.perturbations, self.prob, self.reach = kwargs, perturbations, prob, reach
+        self.names = sorted(perturbations)
+        self.nominal = self.env = PamWalkerEnv(**kwargs)
+        self.action_space, self.observation_space = self.env.action_space, self.env.observation_space
+        self.drawn: tuple[str, float] = ("nominal", 0.0)  # this episode's perturbation and strength
+
+    def draw(self) -> dict[str, dict]:
+        """This episode's env keyword arguments (and ``self.drawn``)."""
+        rng = self.np_random
+        if not self.names or rng.random() >= self.prob:
+            self.drawn = ("nominal", 0.0)
+            return self.kwargs
+        name = self.names[int(rng.integers(len(self.names)))]
+        strength = float(rng.uniform(0.0, self.reach))
+        self.drawn = (name, strength)
+        kwargs = perturb(self.kwargs, self.perturbations[name], f"train.randomize.{name}", strength)
+        env = kwargs["env"]
+        if any(env["push_impulse_ns"]):
+            latest = env["episode_s"] - PUSH_MARGIN_S - env["push_duration_s"]
+            env["push_time_s"] = float(rng.uniform(PUSH_MARGIN_S, max(PUSH_MARGIN_S, latest)))
+        return kwargs
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        kwargs = self.draw()
+        new = self.nominal if kwargs is self.kwargs else PamWalkerEnv(**kwargs)
+        if self.env is not self.nominal and self.env is not new:
+            self.env.close()
+        self.env = new
+        return self.env.reset(seed=int(self.np_random.integers(2**31)), options=options)
+
+    def step(self, action):
+        return self.env.step(action)
+
+    def close(self):
+        if self.env is not self.nominal:
+            self.env.close()
+        self.nominal.close()
+
+
+def check(cfg: Config) -> None:
+    """Every perturbation ``train.randomize`` names applies to the run's robot and task: a
+    ConfigError naming the key otherwise, before the run writes anything (its names are checked
+    against ``eval.perturbations`` with the config)."""
+    from dataclasses import asdict
+
+    kwargs = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}
+    for name in cfg.train.randomize:
+        perturb(kwargs, cfg.eval.perturbations[name], f"eval.perturbations.{name}")

@@ -1,0 +1,108 @@
+"""Domain randomisation during training (pamrun/randomize.py) and the gait reward options
+(reward.kstop, reward.kspeed, train.walk_weights)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict
+
+import numpy as np
+import pytest
+
+from pamrun.config import ConfigError, to_object
+from pamrun.body import JOINTS
+from pamrun.env import REWARD_KEYS, PamWalkerEnv
+from tests.conftest import compose_config
+
+
+def walker(cfg, names, prob=1.0, reach=1.0):
+    from pamrun.randomize import RandomizedWalker
+
+    kwargs = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}
+    return RandomizedWalker(kwargs, {n: cfg.eval.perturbations[n] for n in names}, prob, reach)
+
+
+def test_each_episode_draws_a_perturbation_reproducibly(cfg):
+    """With the env's seed, the same draws; a drawn perturbation is applied at its strength (mass
+    factor 1 + s (1.1 - 1)); a push comes at a drawn time inside the episode's middle."""
+    env = walker(cfg, ["mass_heavy", "push_forward"], prob=1.0, reach=1.0)
+    draws = []
+    for k in range(12):
+        env.reset(seed=100 + k)
+        name, s = env.drawn
+        assert name in ("mass_heavy", "push_forward") and 0 <= s <= 1
+        if name == "mass_heavy":
+            assert env.env.mass_kg == pytest.approx(env.nominal.mass_kg * (1 + 0.1 * s), rel=1e-6)
+        else:
+            e = env.env.env_cfg
+            assert e.push_impulse_ns[0] == pytest.approx(10 * s) and 1.0 <= e.push_time_s <= e.episode_s - 1.1
+        draws.append(env.drawn)
+    assert len({n for n, _ in draws}) == 2
+    again = walker(cfg, ["mass_heavy", "push_forward"])
+    assert [(again.reset(seed=100 + k), again.drawn)[1] for k in range(12)] == draws
+    obs, *_ = env.step(np.zeros(10))
+    assert obs.shape == env.observation_space.shape
+    env.close()
+
+
+def test_no_draw_keeps_the_nominal_env(cfg):
+    env = walker(cfg, ["lag_x2"], prob=0.0)
+    for k in range(3):
+        env.reset(seed=k)
+        assert env.env is env.nominal and env.drawn == ("nominal", 0.0)
+    env.close()
+
+
+def test_randomize_names_are_checked_with_the_config():
+    with pytest.raises(ConfigError, match="train.randomize"):
+        to_object(compose_config("train.randomize=[mass_heavy,nope]"))
+    with pytest.raises(ConfigError, match="randomize_prob"):
+        to_object(compose_config("train.randomize_prob=1.5"))
+    with pytest.raises(ConfigError, match="walk_weights.kspeeed"):
+        to_object(compose_config("+train.walk_weights.kspeeed=3"))
+
+
+def test_stop_and_speed_terms():
+    """kstop's term is the share of hip and ankle joints within 2 deg of a stop (knees excepted),
+    kspeed's exp(-((Vx - v*) / sigma)^2); both 0 by default (the thesis' reward)."""
+    env = PamWalkerEnv(reward={"kstop": 2.0, "kspeed": 3.0}, env={"target_speed_m_s": 0.5, "speed_sigma_m_s": 0.25})
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(np.zeros(10))
+    f = dict(zip(REWARD_KEYS, info["reward_unweighted"]))
+    assert f["kstop"] == 0.0  # standing: no hip or ankle at a stop
+    vx = env.data.qvel[0]
+    assert f["kspeed"] == pytest.approx(math.exp(-(((vx - 0.5) / 0.25) ** 2)))
+    assert info["reward_terms"]["kspeed"] == pytest.approx(3.0 * f["kspeed"])
+    q = env.data.qpos.tolist()
+    limits = env._stops_rad
+    for j, adr in enumerate(env._qpos_idx):
+        q[adr] = limits[j, 1] + 0.01  # every joint past its upper stop margin
+    assert env.stop_share(q) == 1.0
+    knee = next(j for j, name in enumerate(JOINTS) if "knee" in name)
+    q[env._qpos_idx[knee]] = 0.5 * (limits[knee, 0] + limits[knee, 1])
+    assert env.stop_share(q) == 1.0  # a knee does not count
+    q[env._qpos_idx[0]] = 0.5 * (limits[0, 0] + limits[0, 1])
+    assert env.stop_share(q) == pytest.approx(7 / 8)
+    assert PamWalkerEnv().reward_weights[REWARD_KEYS.index("kstop")] == 0.0
+    env.close()
+
+
+def test_walk_weights_reweight_any_term(cfg):
+    """train.walk_weights: the walking stage re-weights any reward term of replay samples."""
+    import torch
+
+    from pamrun.curriculum import WalkCurriculum
+
+    cfg.train.walk_kvx, cfg.train.walk_weights, cfg.train.actor_start_frames = None, {"kspeed": 3.0}, 0
+    curriculum = WalkCurriculum(cfg)
+    from tensordict import TensorDict
+
+    features = torch.rand(5, len(REWARD_KEYS), dtype=torch.float64)
+    reward = torch.zeros(5, 1)
+    sample = TensorDict({"next": {"reward": reward.clone(), "reward_unweighted": features}}, [5])
+    assert torch.equal(curriculum.transform(sample.clone())["next", "reward"], reward)  # not yet walking
+    assert curriculum.observe(1.0, cfg.train.init_random_frames + 1)
+    out = curriculum.transform(sample.clone())["next", "reward"]
+    k = REWARD_KEYS.index("kspeed")
+    assert torch.allclose(out, (3.0 - cfg.reward.kspeed) * features[:, k:k + 1].float())
+    assert "kspeed 0 -> 3" in curriculum.describe()
