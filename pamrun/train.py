@@ -30,6 +30,7 @@ from pamrun.curriculum import FEATURES, WalkCurriculum
 from pamrun.rundir import EVAL_FIELDS, CsvLog, EpisodeLog, RunFiles
 from pamrun.runio import Progress
 from pamrun.runtime import Terminated, stop_signals, usable_cores
+from pamrun.symmetry import mirror_batch
 from pamrun.trainview import end_of_run, header_table, summary_table
 
 NEW_RUN = {"frames": 0, "episodes": 0, "updates": 0, "wall_time_s": 0.0}  # a run's counters at its start
@@ -197,6 +198,8 @@ class Run:
         when they reach the threshold (never one whose physics blew up)."""
         self.frames += batch.numel()
         self.buffer.extend(batch)
+        if self.cfg.train.mirror:  # its mirror image too (pamrun/symmetry.py): the same reward, twice the data
+            self.buffer.extend(mirror_batch(batch))
         finished = self.tracker.add(batch)
         q0s = self.learner.q0(torch.stack([e["obs0"] for e in finished])) if finished else []
         for episode, q0 in zip(finished, q0s):

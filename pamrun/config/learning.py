@@ -95,6 +95,7 @@ class TrainConfig:
     # Domain randomisation (pamrun/randomize.py): each episode, with probability randomize_prob, one
     # of these eval.perturbations (the robustness suite's) at a strength drawn in [0, randomize_reach]
     # of the way to it. [] = off. The evaluations during training stay nominal.
+    mirror: bool = False  # also store each transition's left-right mirror image in the replay buffer (pamrun/symmetry.py)
     randomize: list[str] = field(default_factory=list)  # names in eval.perturbations, e.g. [mass_heavy, lag_x2]
     randomize_prob: float = 0.5  # share of episodes with a perturbation
     randomize_reach: float = 1.0  # strength drawn uniformly in [0, this]; > 1 goes beyond the suite's sizes
