@@ -75,9 +75,12 @@ class WalkCurriculum:
     def active(self) -> bool:
         return self.kvx is not None or bool(self.cfg.train.walk_weights)
 
+    def changed(self) -> dict[str, float]:
+        """The walking stage's weights that differ from the env's."""
+        return {k: w for k, w in self.weights.items() if w != getattr(self.cfg.reward, k)}
+
     def describe(self) -> str:
-        changed = ", ".join(f"{k} {getattr(self.cfg.reward, k):g} -> {w:g}" for k, w in self.weights.items()
-                            if w != getattr(self.cfg.reward, k))
+        changed = ", ".join(f"{k} {getattr(self.cfg.reward, k):g} -> {w:g}" for k, w in self.changed().items())
         return (f"Walking stage of the curriculum since {self.since} frames, when it first stood in every "
                 f"evaluation episode: the learner's weights {changed} (train.walk_kvx = {self.kvx}, "
                 f"train.walk_weights; the env keeps reward.*).")

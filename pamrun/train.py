@@ -102,7 +102,6 @@ def make_buffer(cfg: Config, curriculum: WalkCurriculum):
 
 def train(cfg: Config, out: Path, overrides: list[str] = ()) -> str:
     """Train (or resume) the run in ``out`` with ``cfg``; return how it ended (run.json's status).
-
     ``overrides``: the command line, recorded in run.json (a resume takes a new budget from it)."""
     from pamrun.runio import console as make_console
 
@@ -247,7 +246,8 @@ class Run:
     def evaluate(self) -> dict:
         result = self.evals.run(self.learner.actor.module, self.learner.policy_state(), self.cfg, self.counters())
         if self.curriculum.observe(result["stand_rate"], self.frames):
-            self.log.writer.add_scalar("curriculum/kvx", self.curriculum.kvx, self.frames)
+            for key, weight in self.curriculum.changed().items():
+                self.log.writer.add_scalar(f"curriculum/{key}", weight, self.frames)
             self.info["walk_kvx_from_frames"] = self.frames
             self.console.print(self.curriculum.describe(), soft_wrap=True)
         return result

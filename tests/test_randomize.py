@@ -105,4 +105,4 @@ def test_walk_weights_reweight_any_term(cfg):
     out = curriculum.transform(sample.clone())["next", "reward"]
     k = REWARD_KEYS.index("kspeed")
     assert torch.allclose(out, (3.0 - cfg.reward.kspeed) * features[:, k:k + 1].float())
-    assert "kspeed 0 -> 3" in curriculum.describe()
+    assert "kspeed 0 -> 3" in curriculum.describe() and curriculum.changed() == {"kspeed": 3.0}
