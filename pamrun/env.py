@@ -227,7 +227,9 @@ class PamWalkerEnv(gym.Env):
         self._joint_angles = operator.itemgetter(*self._qpos_idx.tolist())  # from qpos as a list
         margin = math.radians(STOP_MARGIN_DEG)
         self._stops_rad = joint_limits_rad(self.body_cfg) + [margin, -margin]  # 'at a stop' below / above these
-        self._not_knee = np.array(["knee" not in name for name in body_mod.JOINTS])
+        # (qpos address, lower, upper) of each hip and ankle joint, as Python floats: read every step
+        self._stop_checks = [(int(adr), float(lo), float(hi)) for adr, (lo, hi), name in
+                             zip(self._qpos_idx, self._stops_rad, body_mod.JOINTS) if "knee" not in name]
         self._joint_velocities = operator.itemgetter(*self._qvel_idx.tolist())
         self._steps = 0
         self._x0 = 0.0
@@ -351,9 +353,7 @@ class PamWalkerEnv(gym.Env):
     def stop_share(self, qpos: list[float]) -> float:
         """Share of the hip and ankle joints within gait.STOP_MARGIN_DEG of a stop (``kstop``'s term;
         the knees rest on their extension stop by design: their lock in stance)."""
-        angle = np.array(self._joint_angles(qpos))
-        at_stop = (angle <= self._stops_rad[:, 0]) | (angle >= self._stops_rad[:, 1])
-        return float(at_stop[self._not_knee].mean())
+        return sum(not lo < qpos[adr] < hi for adr, lo, hi in self._stop_checks) / len(self._stop_checks)
 
     def _reward(self, action: np.ndarray, physics_error: bool, state: _State | None = None,
                 previous: np.ndarray | None = None, fell: bool = False) -> tuple[float, dict[str, float], list[float]]:
