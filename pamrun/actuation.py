@@ -46,6 +46,8 @@ twin :class:`CompiledKinematicCoupling`), chosen once by :func:`make_coupling`;
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
+
 import numpy as np
 
 from pamrun.config import LEG_JOINTS, BodyConfig, MuscleConfig
@@ -94,7 +96,7 @@ def n_actions(muscle: MuscleConfig) -> int:
     return len(JOINTS) * (2 if muscle.command == "independent" else 1)
 
 
-class Coupling:
+class Coupling(ABC):
     """What every muscle-joint coupling shares: the pairs, their levers and the static torque.
 
     A coupling steps the pairs (:meth:`torques_nm`, :meth:`apply`, :meth:`advance`) holding a
@@ -113,15 +115,15 @@ class Coupling:
         """Both muscles of every pair at ``rest_pct`` (the pairs' own state: AntagonisticPairs.reset)."""
         self.contraction_pct[:] = self.rest_pct
 
+    @abstractmethod
     def torques_nm(self, voltage_v: np.ndarray, angle_rad: np.ndarray, velocity_rad_s: np.ndarray,
                    dt_s: float) -> np.ndarray:
         """Advance the muscles by dt_s [s]; the (n,) joint torques [N m]."""
-        raise NotImplementedError
 
+    @abstractmethod
     def apply(self, voltage_v: np.ndarray, model, data, qpos_idx: np.ndarray, qvel_idx: np.ndarray,
               dt_s: float) -> None:
         """Advance the muscles by dt_s [s] and set MuJoCo's joint actuators for the next dt_s."""
-        raise NotImplementedError
 
     def advance(self, voltage_v: np.ndarray, model, data, qpos_idx: np.ndarray, qvel_idx: np.ndarray, dt_s: float,
                 muscle_steps: int, physics_steps: int) -> None:
@@ -132,9 +134,9 @@ class Coupling:
             self.apply(voltage_v, model, data, qpos_idx, qvel_idx, dt_s)
             mj_step(model, data, physics_steps)
 
+    @abstractmethod
     def static_contraction_pct(self, angle_rad: np.ndarray, pressure_kpa: np.ndarray) -> np.ndarray:
         """Both muscles' contraction [%], (..., n, 2), at rest at these angles [rad] and pressures [kPa]."""
-        raise NotImplementedError
 
     def static_torque_nm(self, angle_rad: np.ndarray, pressure_kpa: np.ndarray) -> np.ndarray:
         """Torque k (F1 - F2) r [N m] at rest, no state: angles (..., n) [rad], pressures (..., n, 2)
