@@ -38,22 +38,26 @@ Python per physics step.
 
 ## Reward (thesis Table 9.3, config group ``reward``)
 r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf - kda sum((a_prev - a_prev2)^2)
-- kfall [fell] - kstop n_stop / 8 + kspeed exp(-((Vx - v*) / sigma)^2), with Vx the torso's forward velocity, y its lateral
+- kfall [fell] - kstop n_stop / n + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip, with Vx the torso's forward velocity, y its lateral
 deviation, z - z0 its height change since reset, a_prev the action applied in this step (the
 "previous action" of the next observation) and a_prev2 the one before it (zero at reset).
-The last four terms are not the thesis' (their weights are 0 by default): ``kda`` penalises
+The last five terms are not the thesis' (their weights are 0 by default): ``kda`` penalises
 changes of the command, for the smoother gait the thesis asked for; ``kfall`` is paid once,
-on the step that ends the episode by a fall; ``kstop`` penalises the share n_stop / 8 of the
-hip and ankle joints within 2 deg of a stop (:data:`pamrun.gait.STOP_MARGIN_DEG`; the knees
-rest on their extension stop by design, their lock in stance); ``kspeed`` pays for walking
-near ``env.target_speed_m_s`` (v*, within ``env.speed_sigma_m_s``) rather than ever faster.
+on the step that ends the episode by a fall; ``kstop`` penalises the share n_stop / n of the
+hip and ankle joints, and of the knees of legs whose foot is off the ground, within 2 deg of a
+stop (:data:`pamrun.gait.STOP_MARGIN_DEG`; a knee in stance rests on its extension stop by
+design, its lock; in swing it should bend); ``kspeed`` pays for walking near
+``env.target_speed_m_s`` (v*, within ``env.speed_sigma_m_s``) rather than ever faster; ``kslip``
+penalises slip: the horizontal speed [m/s] of each foot's ground point over a control step in
+which the foot is on the ground at both ends, summed over the feet (:mod:`pamrun.gait`'s foot
+slip, per step; a foot is on the ground above its ``CONTACT_WEIGHT_SHARE`` of the weight).
 
 Every term is a weight times an unweighted feature, and this is the formula's one home
 (:meth:`PamWalkerEnv.reward_features`, :data:`REWARD_KEYS`, MyoSuite's style): the features are
-Vx, -y^2, -(z - z0)^2, -sum(a_prev^2), Ts / Tf, -sum((a_prev - a_prev2)^2), -[fell] and
--n_stop / 8 and exp(-((Vx - v*) / sigma)^2), all 0 in a step whose physics blew up. ``info["reward_terms"]`` holds the weighted terms under the key of
+Vx, -y^2, -(z - z0)^2, -sum(a_prev^2), Ts / Tf, -sum((a_prev - a_prev2)^2), -[fell],
+-n_stop / n, exp(-((Vx - v*) / sigma)^2) and -slip, all 0 in a step whose physics blew up. ``info["reward_terms"]`` holds the weighted terms under the key of
 their weight (``kvx``: forward, ``ky``: lateral, ``kz``: height, ``kv``: effort, ``kt``: alive,
-``kda``: command change, ``kfall``: fall, ``kstop``: joint stops, ``kspeed``: speed), so a term and the ``reward.<key>`` that scales it
+``kda``: command change, ``kfall``: fall, ``kstop``: joint stops, ``kspeed``: speed, ``kslip``: slip), so a term and the ``reward.<key>`` that scales it
 share one name; ``info["reward_unweighted"]`` holds the features in ``REWARD_KEYS`` order and
 ``env.reward_weights`` the weights, so a learner can re-weight any term after the fact
 (pamrun's training stores the features in its replay buffer: :mod:`pamrun.curriculum`).
@@ -99,7 +103,7 @@ from omegaconf import OmegaConf  # noqa: E402
 from pamrun import body as body_mod  # noqa: E402
 from pamrun.actuation import MuscleDrive, joint_limits_rad, n_actions  # noqa: E402
 from pamrun.config import BodyConfig, EnvConfig, MuscleConfig, RewardConfig, to_object  # noqa: E402
-from pamrun.gait import STOP_MARGIN_DEG  # noqa: E402
+from pamrun.gait import CONTACT_WEIGHT_SHARE, STOP_MARGIN_DEG  # noqa: E402
 from pamrun.task import fell as fell_rule  # noqa: E402
 
 N_JOINTS = len(body_mod.JOINTS)  # the hinges, pamrun.config.LEG_JOINTS on each side
@@ -227,9 +231,15 @@ class PamWalkerEnv(gym.Env):
         self._joint_angles = operator.itemgetter(*self._qpos_idx.tolist())  # from qpos as a list
         margin = math.radians(STOP_MARGIN_DEG)
         self._stops_rad = joint_limits_rad(self.body_cfg) + [margin, -margin]  # 'at a stop' below / above these
-        # (qpos address, lower, upper) of each hip and ankle joint, as Python floats: read every step
-        self._stop_checks = [(int(adr), float(lo), float(hi)) for adr, (lo, hi), name in
-                             zip(self._qpos_idx, self._stops_rad, body_mod.JOINTS) if "knee" not in name]
+        # (qpos address, lower, upper) of each hip and ankle joint, and of each knee with its foot's
+        # column in foot_forces_n (right, left), as Python floats: read every step
+        limits = [(int(adr), float(lo), float(hi), name) for adr, (lo, hi), name in
+                  zip(self._qpos_idx, self._stops_rad, body_mod.JOINTS)]
+        self._stop_checks = [(adr, lo, hi) for adr, lo, hi, name in limits if "knee" not in name]
+        self._knee_checks = [(adr, lo, hi, body_mod.SIDES.index(name.split("_")[0]))
+                             for adr, lo, hi, name in limits if "knee" in name]
+        self.contact_n = CONTACT_WEIGHT_SHARE * self.weight_n  # a foot carrying more is on the ground
+        self._soles, self._contact, self._slip = None, [False, False], 0.0  # last step's feet, this step's slip
         self._joint_velocities = operator.itemgetter(*self._qvel_idx.tolist())
         self._steps = 0
         self._x0 = 0.0
@@ -262,6 +272,7 @@ class PamWalkerEnv(gym.Env):
         self._steps = 0
         self._x0 = float(d.qpos[0])
         feet, state = self.foot_forces_n(), self._state()
+        self._update_slip(feet)
         info = self._info(False, feet, self._fell(state), state)
         info["reward_terms"] = dict.fromkeys(REWARD_KEYS, 0.0)  # as after a step, so info's keys never change
         info["reward_unweighted"] = np.zeros(len(REWARD_KEYS))
@@ -285,6 +296,7 @@ class PamWalkerEnv(gym.Env):
         unstable = sum(_unstable_counts(d.warning.number.tolist()))
         physics_error = unstable > 0 or not _all_finite(state[0], state[1])
         feet = self.foot_forces_n()
+        self._update_slip(feet)
         obs = self._observation(feet, state)
         if physics_error:
             obs = np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
@@ -341,19 +353,39 @@ class PamWalkerEnv(gym.Env):
                         state: _State | None = None) -> list[float]:
         """The reward's unweighted features in ``REWARD_KEYS`` order (module docstring, "Reward")."""
         cfg = self.env_cfg
-        _, y, z, _, _, _, vx, *_ = (self._state() if state is None else state)[2]
+        state = self._state() if state is None else state
+        _, y, z, _, _, _, vx, *_ = state[2]
         return [vx, -(y**2), -((z - self.z0) ** 2),
                 -float(np.add.reduce(action * action)),  # = np.sum(action**2), bit for bit
                 cfg.control_dt_s / cfg.episode_s,
                 -float(np.add.reduce((action - (action if previous is None else previous)) ** 2)),
                 -float(fell),
-                -self.stop_share((self._state() if state is None else state)[0]),
-                math.exp(-(((vx - cfg.target_speed_m_s) / cfg.speed_sigma_m_s) ** 2))]
+                -self.stop_share(state[0]),
+                math.exp(-(((vx - cfg.target_speed_m_s) / cfg.speed_sigma_m_s) ** 2)),
+                -self._slip]
 
     def stop_share(self, qpos: list[float]) -> float:
-        """Share of the hip and ankle joints within gait.STOP_MARGIN_DEG of a stop (``kstop``'s term;
-        the knees rest on their extension stop by design: their lock in stance)."""
-        return sum(not lo < qpos[adr] < hi for adr, lo, hi in self._stop_checks) / len(self._stop_checks)
+        """Share of the hip and ankle joints, and of the knees of legs whose foot is off the ground
+        (after the step), within gait.STOP_MARGIN_DEG of a stop (``kstop``'s term; a knee in
+        stance rests on its extension stop by design: its lock)."""
+        n = sum(not lo < qpos[adr] < hi for adr, lo, hi in self._stop_checks)
+        swinging = [(adr, lo, hi) for adr, lo, hi, foot in self._knee_checks if not self._contact[foot]]
+        n += sum(not lo < qpos[adr] < hi for adr, lo, hi in swinging)
+        return n / (len(self._stop_checks) + len(swinging))
+
+    def _update_slip(self, foot_force_n: np.ndarray) -> None:
+        """This step's slip (``kslip``'s feature, module docstring) from the feet's ground points
+        then and now, and the feet on the ground now (for the next step and ``stop_share``)."""
+        soles = self.data.geom_xpos[self._sole_ids].reshape(2, -1, 3)  # fancy indexing: a copy
+        contact = [f > self.contact_n for f in foot_force_n.tolist()]
+        slip = 0.0
+        if self._soles is not None and self._steps > 0:
+            for foot in (0, 1):
+                if contact[foot] and self._contact[foot]:
+                    lowest = int(np.argmin(self._soles[foot, :, 2]))
+                    dx, dy = (soles[foot, lowest, :2] - self._soles[foot, lowest, :2]).tolist()
+                    slip += math.hypot(dx, dy) / self.env_cfg.control_dt_s
+        self._soles, self._contact, self._slip = soles, contact, slip
 
     def _reward(self, action: np.ndarray, physics_error: bool, state: _State | None = None,
                 previous: np.ndarray | None = None, fell: bool = False) -> tuple[float, dict[str, float], list[float]]:
@@ -377,7 +409,7 @@ class PamWalkerEnv(gym.Env):
             "pressure_kpa": self.drive.pressure_kpa.copy(),
             "contraction_pct": self.drive.contraction_pct.copy(),
             "foot_force_n": foot_force_n,
-            "sole_xyz_m": self.data.geom_xpos[self._sole_ids].reshape(2, 4, 3),  # fancy indexing: a copy
+            "sole_xyz_m": self._soles,  # (2, 4, 3), this step's (_update_slip)
             "joint_torque_nm": self.data.qfrc_actuator[self._qvel_idx],
             "fell": bool(fell),
             "physics_error": np.bool_(physics_error),  # numpy: TorchRL's info reader needs a dtype

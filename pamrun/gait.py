@@ -30,6 +30,9 @@ Definitions (the manual of :func:`episode_metrics`):
   feet (over the whole episode: standing still is 1).
 * **stop share** of a joint: the share of the rows in which its angle lies within
   ``stop_margin_rad`` of its lower or upper limit (or past it).
+* **knee swing stop share**: the share of the rows in which a foot is off the ground and its
+  knee lies within ``stop_margin_rad`` of a stop, pooled over both legs (the knee's stop share
+  counts its lock in stance, by design; in swing a walker's knee bends).
 * **foot slip**: mean horizontal (x, y) speed of a foot's ground point between consecutive
   rows in which the foot is in contact in both, pooled over both feet. The ground point is
   the contact sphere lowest at the first of the two rows, followed to the second: a foot
@@ -70,6 +73,7 @@ GAIT_METRICS = (
     "duty_factor",
     *(f"stop_share_{joint}" for joint in JOINTS),
     "stop_share_max",
+    "knee_swing_stop_share",
     "foot_slip_m_s",
     "cost_of_transport",
     "air_nl",
@@ -183,6 +187,17 @@ def stop_shares(joint_angle_rad, spec: GaitSpec) -> np.ndarray:
     return at_stop.mean(axis=0) if len(q) else np.full(len(JOINTS), math.nan)
 
 
+def knee_swing_stop_share(joint_angle_rad, contact: np.ndarray, spec: GaitSpec) -> float:
+    """Share of the rows with a foot off the ground in which that leg's knee is at a stop, pooled
+    over both legs (a knee in stance rests on its stop by design, its lock; in swing it bends)."""
+    q = np.asarray(joint_angle_rad, float).reshape(-1, len(JOINTS))
+    knees = [JOINTS.index(f"{side}_knee") for side in SIDES]  # in foot-column order (RIGHT, LEFT)
+    lower, upper = spec.joint_limits_rad[knees, 0], spec.joint_limits_rad[knees, 1]
+    at_stop = (q[:, knees] <= lower + spec.stop_margin_rad) | (q[:, knees] >= upper - spec.stop_margin_rad)
+    swing = ~contact[: len(q)]
+    return float(at_stop[swing].mean()) if swing.any() else math.nan
+
+
 def foot_slip_m_s(steps: dict, contact: np.ndarray) -> float:
     """Mean horizontal speed [m/s] of the feet between consecutive rows in contact at both ends."""
     t = np.asarray(steps["t_s"], float)
@@ -243,6 +258,7 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
     for joint, share in zip(JOINTS, shares):
         out[f"stop_share_{joint}"] = float(share)
     out["stop_share_max"] = float(np.max(shares))
+    out["knee_swing_stop_share"] = knee_swing_stop_share(steps["joint_angle_rad"], contact, spec)
 
     out["foot_slip_m_s"] = foot_slip_m_s(steps, contact)
 

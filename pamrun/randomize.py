@@ -1,12 +1,14 @@
 """Domain randomisation during training (``train.randomize``): the robustness suite's
 perturbations, drawn per episode.
 
-Each episode, with probability ``train.randomize_prob``, the robot and task are one of the
-perturbations named in ``train.randomize`` (defined in ``eval.perturbations``, the suite's
-own: mass, friction, regulator lag, top pressure, observation and start noise, pushes), at a
-strength s drawn uniformly in [0, ``train.randomize_reach``] of the way from the run's own
-config to it (:func:`pamrun.rollout.perturb`: a factor f becomes 1 + s (f - 1); s > 1 goes
-beyond the suite's size, for a margin). A push comes at a time drawn uniformly between 1 s
+Each episode, with probability ``train.randomize_prob``, the robot and task carry
+``train.randomize_count`` distinct perturbations named in ``train.randomize`` (defined in
+``eval.perturbations``, the suite's own: mass, friction, regulator lag, top pressure,
+observation and start noise, pushes), drawn uniformly, each at its own strength s drawn
+uniformly in [0, ``train.randomize_reach``] of the way from the run's own config to it
+(:func:`pamrun.rollout.perturb`: a factor f becomes 1 + s (f - 1); s > 1 goes beyond the
+suite's size, for a margin). Factors compose (mass x1.1 and x0.9 both drawn: their product);
+two perturbations that set the same value (the pushes) are never drawn together. A push comes at a time drawn uniformly between 1 s
 and 1 s before the episode's end, so a policy cannot learn when it comes. Otherwise the
 episode is the run's nominal robot and task. The draws come from the env's own seeded
 generator, so a run stays reproducible.
@@ -21,7 +23,7 @@ from typing import Any
 
 import gymnasium as gym
 
-from pamrun.config import Config
+from pamrun.config import Config, flatten
 from pamrun.env import PamWalkerEnv
 from pamrun.rollout import perturb
 
@@ -33,23 +35,29 @@ class RandomizedWalker(gym.Env):
 
     metadata = PamWalkerEnv.metadata
 
-    def __init__(self, kwargs: dict[str, dict], perturbations: dict[str, Any], prob: float, reach: float):
-        self.kwargs, self.perturbations, self.prob, self.reach = kwargs, perturbations, prob, reach
+    def __init__(self, kwargs: dict[str, dict], perturbations: dict[str, Any], prob: float, reach: float,
+                 count: int = 1):
+        self.kwargs, self.perturbations, self.prob, self.reach, self.count = kwargs, perturbations, prob, reach, count
         self.names = sorted(perturbations)
         self.nominal = self.env = PamWalkerEnv(**kwargs)
         self.action_space, self.observation_space = self.env.action_space, self.env.observation_space
-        self.drawn: tuple[str, float] = ("nominal", 0.0)  # this episode's perturbation and strength
+        self.drawn: tuple[tuple[str, float], ...] = ()  # this episode's perturbations and strengths
 
     def draw(self) -> dict[str, dict]:
         """This episode's env keyword arguments (and ``self.drawn``)."""
         rng = self.np_random
+        self.drawn = ()
         if not self.names or rng.random() >= self.prob:
-            self.drawn = ("nominal", 0.0)
             return self.kwargs
-        name = self.names[int(rng.integers(len(self.names)))]
-        strength = float(rng.uniform(0.0, self.reach))
-        self.drawn = (name, strength)
-        kwargs = perturb(self.kwargs, self.perturbations[name], f"train.randomize.{name}", strength)
+        kwargs, taken = self.kwargs, set()
+        for k in rng.permutation(len(self.names)).tolist():
+            name = self.names[k]
+            sets = set(flatten(self.perturbations[name].values))
+            if len(self.drawn) == self.count or sets & taken:
+                continue
+            strength = float(rng.uniform(0.0, self.reach))
+            kwargs = perturb(kwargs, self.perturbations[name], f"train.randomize.{name}", strength)
+            self.drawn, taken = (*self.drawn, (name, strength)), taken | sets
         env = kwargs["env"]
         if any(env["push_impulse_ns"]):
             latest = env["episode_s"] - PUSH_MARGIN_S - env["push_duration_s"]

@@ -49,11 +49,11 @@ def make_env(cfg: Config, seed: int | None = None):
 
     import pamrun  # noqa: F401  (registers the env in worker processes too)
     from pamrun.env import REWARD_KEYS
-    from pamrun.randomize import RandomizedWalker
 
     kwargs, t = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}, cfg.train
-    env = GymWrapper(RandomizedWalker(kwargs, {n: cfg.eval.perturbations[n] for n in t.randomize}, t.randomize_prob,
-                                      t.randomize_reach) if t.randomize else gym.make("pamrun/PamWalker-v0", **kwargs))
+    perturbations = {n: cfg.eval.perturbations[n] for n in t.randomize}
+    env = GymWrapper(randomize.RandomizedWalker(kwargs, perturbations, t.randomize_prob, t.randomize_reach, t.randomize_count)
+                     if t.randomize else gym.make("pamrun/PamWalker-v0", **kwargs))
     spec = {"distance": Unbounded((), dtype=torch.float64), "physics_error": Unbounded((), dtype=torch.bool),
             FEATURES: Unbounded((len(REWARD_KEYS),), dtype=torch.float64)}  # what the env's info holds
     env.set_info_dict_reader(default_info_dict_reader(list(spec), spec=spec))

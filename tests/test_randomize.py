@@ -15,11 +15,11 @@ from pamrun.env import REWARD_KEYS, PamWalkerEnv
 from tests.conftest import compose_config
 
 
-def walker(cfg, names, prob=1.0, reach=1.0):
+def walker(cfg, names, prob=1.0, reach=1.0, count=1):
     from pamrun.randomize import RandomizedWalker
 
     kwargs = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}
-    return RandomizedWalker(kwargs, {n: cfg.eval.perturbations[n] for n in names}, prob, reach)
+    return RandomizedWalker(kwargs, {n: cfg.eval.perturbations[n] for n in names}, prob, reach, count)
 
 
 def test_each_episode_draws_a_perturbation_reproducibly(cfg):
@@ -29,7 +29,7 @@ def test_each_episode_draws_a_perturbation_reproducibly(cfg):
     draws = []
     for k in range(12):
         env.reset(seed=100 + k)
-        name, s = env.drawn
+        ((name, s),) = env.drawn
         assert name in ("mass_heavy", "push_forward") and 0 <= s <= 1
         if name == "mass_heavy":
             assert env.env.mass_kg == pytest.approx(env.nominal.mass_kg * (1 + 0.1 * s), rel=1e-6)
@@ -37,7 +37,7 @@ def test_each_episode_draws_a_perturbation_reproducibly(cfg):
             e = env.env.env_cfg
             assert e.push_impulse_ns[0] == pytest.approx(10 * s) and 1.0 <= e.push_time_s <= e.episode_s - 1.1
         draws.append(env.drawn)
-    assert len({n for n, _ in draws}) == 2
+    assert len({n for ((n, _),) in draws}) == 2
     again = walker(cfg, ["mass_heavy", "push_forward"])
     assert [(again.reset(seed=100 + k), again.drawn)[1] for k in range(12)] == draws
     obs, *_ = env.step(np.zeros(10))
@@ -49,8 +49,31 @@ def test_no_draw_keeps_the_nominal_env(cfg):
     env = walker(cfg, ["lag_x2"], prob=0.0)
     for k in range(3):
         env.reset(seed=k)
-        assert env.env is env.nominal and env.drawn == ("nominal", 0.0)
+        assert env.env is env.nominal and env.drawn == ()
     env.close()
+
+
+def test_a_perturbed_episode_combines_distinct_perturbations(cfg):
+    """train.randomize_count: that many perturbations at once, each at its own strength (factors
+    compose); the pushes, which set the same values, never come together."""
+    names = ["mass_heavy", "friction_low", "push_forward", "push_backward", "push_sideways"]
+    env = walker(cfg, names, count=3)
+    friction = env.nominal.body_cfg.friction_static
+    seen = set()
+    for k in range(20):
+        env.reset(seed=k)
+        drawn = dict(env.drawn)
+        assert len(drawn) == 3 and sum(n.startswith("push") for n in drawn) <= 1
+        assert len(drawn) - sum(n.startswith("push") for n in drawn) >= 2
+        seen |= set(drawn)
+        s = drawn.get("friction_low", 0.0)
+        assert env.env.body_cfg.friction_static == pytest.approx(friction * (1 - 0.3 * s))
+        s = drawn.get("mass_heavy", 0.0)
+        assert env.env.mass_kg == pytest.approx(env.nominal.mass_kg * (1 + 0.1 * s), rel=1e-6)
+    assert seen == set(names)
+    env.close()
+    with pytest.raises(ConfigError, match="randomize_count"):
+        to_object(compose_config("train.randomize_count=0"))
 
 
 def test_randomize_names_are_checked_with_the_config():
@@ -63,8 +86,9 @@ def test_randomize_names_are_checked_with_the_config():
 
 
 def test_stop_and_speed_terms():
-    """kstop's term is the share of hip and ankle joints within 2 deg of a stop (knees excepted),
-    kspeed's exp(-((Vx - v*) / sigma)^2); both 0 by default (the thesis' reward)."""
+    """kstop's term is the share of hip and ankle joints within 2 deg of a stop (knees in stance
+    excepted, knees in swing counted), kspeed's exp(-((Vx - v*) / sigma)^2); both 0 by default
+    (the thesis' reward)."""
     env = PamWalkerEnv(reward={"kstop": 2.0, "kspeed": 3.0}, env={"target_speed_m_s": 0.5, "speed_sigma_m_s": 0.25})
     env.reset(seed=0)
     _, _, _, _, info = env.step(np.zeros(10))
@@ -80,9 +104,13 @@ def test_stop_and_speed_terms():
     assert env.stop_share(q) == 1.0
     knee = next(j for j, name in enumerate(JOINTS) if "knee" in name)
     q[env._qpos_idx[knee]] = 0.5 * (limits[knee, 0] + limits[knee, 1])
-    assert env.stop_share(q) == 1.0  # a knee does not count
+    assert env.stop_share(q) == 1.0  # a knee in stance does not count
     q[env._qpos_idx[0]] = 0.5 * (limits[0, 0] + limits[0, 1])
     assert env.stop_share(q) == pytest.approx(7 / 8)
+    env._contact = [True, False]  # the left foot off the ground: its knee counts
+    assert env.stop_share(q) == pytest.approx(8 / 9)
+    env._contact = [False, True]  # the right foot's knee, mid-range, counts as not at a stop
+    assert env.stop_share(q) == pytest.approx(7 / 9)
     assert PamWalkerEnv().reward_weights[REWARD_KEYS.index("kstop")] == 0.0
     env.close()
 
@@ -106,3 +134,24 @@ def test_walk_weights_reweight_any_term(cfg):
     k = REWARD_KEYS.index("kspeed")
     assert torch.allclose(out, (3.0 - cfg.reward.kspeed) * features[:, k:k + 1].float())
     assert "kspeed 0 -> 3" in curriculum.describe() and curriculum.changed() == {"kspeed": 3.0}
+
+
+def test_slip_term_is_the_stance_feet_speed():
+    """kslip's feature is minus the summed horizontal speed of the feet on the ground at both
+    ends of a step: 0 for the robot standing still; a robot carried sideways on its feet at
+    0.4 m/s (MuJoCo's contacts dragged along) slips about 2 x 0.4 m/s."""
+    env = PamWalkerEnv(reward={"kslip": 2.0})
+    env.reset(seed=0)
+    for _ in range(20):
+        _, _, _, _, info = env.step(np.zeros(10))
+    f = dict(zip(REWARD_KEYS, info["reward_unweighted"]))
+    assert all(env._contact) and -0.02 < f["kslip"] <= 0.0
+    slips = []
+    for _ in range(8):  # slide the standing robot along y: both feet drag on the floor
+        env.data.qpos[1] += 0.4 * env.env_cfg.control_dt_s
+        _, _, _, _, info = env.step(np.zeros(10))
+        slips.append(-dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kslip"])
+    assert np.median(slips) == pytest.approx(0.8, rel=0.25)
+    assert info["reward_terms"]["kslip"] == pytest.approx(2.0 * -slips[-1])
+    assert PamWalkerEnv().reward_weights[REWARD_KEYS.index("kslip")] == 0.0
+    env.close()

@@ -92,13 +92,14 @@ class TrainConfig:
     walk_kvx: Optional[float] = None
     # The walking stage's other weights, any reward key (e.g. {kspeed: 3.0}), re-weighted the same way.
     walk_weights: dict[str, float] = field(default_factory=dict)
-    # Domain randomisation (pamrun/randomize.py): each episode, with probability randomize_prob, one
-    # of these eval.perturbations (the robustness suite's) at a strength drawn in [0, randomize_reach]
-    # of the way to it. [] = off. The evaluations during training stay nominal.
+    # Domain randomisation (pamrun/randomize.py): each episode, with probability randomize_prob,
+    # randomize_count of these eval.perturbations (the robustness suite's), each at a strength drawn
+    # in [0, randomize_reach] of the way to it. [] = off. The evaluations during training stay nominal.
     mirror: bool = False  # also store each transition's left-right mirror image in the replay buffer (pamrun/symmetry.py)
     randomize: list[str] = field(default_factory=list)  # names in eval.perturbations, e.g. [mass_heavy, lag_x2]
     randomize_prob: float = 0.5  # share of episodes with a perturbation
     randomize_reach: float = 1.0  # strength drawn uniformly in [0, this]; > 1 goes beyond the suite's sizes
+    randomize_count: int = 1  # perturbations combined in a perturbed episode (two that set one value: not both)
 
     def __post_init__(self) -> None:
         for name in ("max_episodes", "max_frames", "avg_window", "keep_saved", "workers", "frames_per_batch",
@@ -123,6 +124,7 @@ class TrainConfig:
         _require(not self.walk_weights or self.eval_every_frames > 0, "walk_weights",
                  "needs evaluations during training (train.eval_every_frames > 0) to know when the agent stands")
         _require(self.threads >= 0, "threads", f"must be >= 0 (0 = automatic), got {self.threads}")
+        _require(self.randomize_count >= 1, "randomize_count", f"must be >= 1, got {self.randomize_count}")
         _require(0 <= self.randomize_prob <= 1, "randomize_prob", f"must lie in [0, 1], got {self.randomize_prob}")
         _require(self.randomize_reach >= 0 and math.isfinite(self.randomize_reach), "randomize_reach",
                  f"must be a finite strength >= 0, got {self.randomize_reach}")

@@ -16,7 +16,7 @@ class RewardConfig:
 
     r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf
           - kda sum((a_prev - a_prev2)^2) - kfall [fell] - kstop n_stop / n
-          + kspeed exp(-((Vx - v*) / sigma)^2)   (the last four: 0 in the thesis)
+          + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip   (the last five: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -27,11 +27,12 @@ class RewardConfig:
     # Beyond Table 9.3 (0 = the thesis' reward):
     kda: float = 0.0  # weight of the squared command change sum((a - a_prev)^2), for a smoother gait
     kfall: float = 0.0  # penalty paid once, on the step an episode ends by a fall
-    kstop: float = 0.0  # weight of the share of hip and ankle joints within 2 deg of a stop (the knees' is their lock)
+    kstop: float = 0.0  # weight of the share of hip and ankle joints, and swinging legs' knees, within 2 deg of a stop
     kspeed: float = 0.0  # weight of the speed tracking exp(-((Vx - env.target_speed_m_s) / env.speed_sigma_m_s)^2)
+    kslip: float = 0.0  # weight of the feet's slip: summed horizontal speed [m/s] of the feet in stance
 
     def __post_init__(self) -> None:
-        for name in ("kvx", "ky", "kz", "kv", "kt", "kda", "kfall", "kstop", "kspeed"):
+        for name in ("kvx", "ky", "kz", "kv", "kt", "kda", "kfall", "kstop", "kspeed", "kslip"):
             _require(math.isfinite(getattr(self, name)), name, "must be finite")
 
 
