@@ -21,7 +21,8 @@ affine bias, see ``MuscleDrive.apply``), so a stiff pair acts at every physics s
 Python per physics step.
 
 ## Observation space
-``Box(-inf, inf, (33 + n_actions,), float32)``: 43 values (antagonistic) or 53 (independent).
+``Box(-inf, inf, (33 + n_actions,), float32)``: 43 values (antagonistic) or 53 (independent),
+one more with ``env.speed_command`` (the commanded speed, last).
 ``env.observation_structure`` names each block as a slice (use it instead of indices):
 
 | index | ``observation_structure`` key | meaning | unit |
@@ -35,6 +36,13 @@ Python per physics step.
 | 21-30 | ``joint_velocity`` | joint angular velocities, JOINTS order | rad/s |
 | 31, 32 | ``foot_force`` | normal ground force under the right, left foot | robot weights (N / (m g)) |
 | 33-42 (33-52) | ``previous_action`` | the previous action (10 or 20 values) | 1 |
+| 43 (53) | ``speed_command`` | v*, the commanded speed (only with ``env.speed_command``) | m/s |
+
+## Commanded speed
+``kspeed`` pays for walking near v*. v* is ``env.target_speed_m_s``, or, with
+``env.speed_range_m_s = [low, high]``, drawn uniformly per episode at reset (training a policy
+that walks at the speed it is told); ``env.speed_command`` appends v* to the observation so the
+policy can be told. ``info["target_speed_m_s"]`` holds the episode's v*.
 
 ## Reward (thesis Table 9.3, config group ``reward``)
 r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf - kda sum((a_prev - a_prev2)^2)
@@ -114,16 +122,19 @@ _OBS_BLOCKS = (("torso_y", 1), ("torso_z", 1), ("torso_rpy", 3), ("torso_velocit
 OBSERVATION_UNITS = {
     "torso_y": "m", "torso_z": "m", "torso_rpy": "rad", "torso_velocity": "m/s",
     "torso_angular_velocity": "rad/s", "joint_angle": "rad", "joint_velocity": "rad/s",
-    "foot_force": "robot weights (N / (m g))", "previous_action": "1",
+    "foot_force": "robot weights (N / (m g))", "previous_action": "1", "speed_command": "m/s",
 }
 OBS_BASE = sum(n for _, n in _OBS_BLOCKS)  # 33: observations before the previous action
 OBS_SIZE = OBS_BASE + N_JOINTS  # with the antagonistic command (the default and the thesis)
 
 
-def observation_structure(n_actions: int = N_JOINTS) -> dict[str, slice]:
-    """Each observation block's slice, for an env taking ``n_actions`` actions."""
+def observation_structure(n_actions: int = N_JOINTS, speed_command: bool = False) -> dict[str, slice]:
+    """Each observation block's slice, for an env taking ``n_actions`` actions (and told the
+    commanded speed, ``env.speed_command``)."""
     out, start = {}, 0
-    for name, size in (*_OBS_BLOCKS, ("previous_action", n_actions)):
+    for name, size in (*_OBS_BLOCKS, ("previous_action", n_actions), ("speed_command", int(speed_command))):
+        if not size:
+            continue
         out[name] = slice(start, start + size)
         start += size
     return out
@@ -132,10 +143,10 @@ def observation_structure(n_actions: int = N_JOINTS) -> dict[str, slice]:
 REWARD_KEYS = tuple(RewardConfig.__dataclass_fields__)  # one reward term per weight, same key
 
 
-def space_sizes(muscle: MuscleConfig | dict | None = None) -> tuple[int, int]:
-    """(observations, actions) of the env for this muscle config, without building it."""
+def space_sizes(muscle: MuscleConfig | dict | None = None, env: EnvConfig | dict | None = None) -> tuple[int, int]:
+    """(observations, actions) of the env for this muscle and env config, without building it."""
     n = n_actions(as_config(muscle, MuscleConfig))
-    return OBS_BASE + n, n
+    return OBS_BASE + n + int(as_config(env, EnvConfig).speed_command), n
 _INSTABILITY_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQPOS,
     mujoco.mjtWarning.mjWARN_BADQVEL,
@@ -225,8 +236,11 @@ class PamWalkerEnv(gym.Env):
 
         self.n_actions = self.drive.n_actions
         self.action_space = gym.spaces.Box(-1.0, 1.0, (self.n_actions,), np.float32)
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (OBS_BASE + self.n_actions,), np.float32)
-        self.observation_structure = observation_structure(self.n_actions)
+        self.speed_command = self.env_cfg.speed_command
+        size = OBS_BASE + self.n_actions + int(self.speed_command)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (size,), np.float32)
+        self.observation_structure = observation_structure(self.n_actions, self.speed_command)
+        self.target_speed_m_s = self.env_cfg.target_speed_m_s  # v*, this episode's (env.speed_range_m_s)
         self._prev_action = np.zeros(self.n_actions)
         self._joint_angles = operator.itemgetter(*self._qpos_idx.tolist())  # from qpos as a list
         margin = math.radians(STOP_MARGIN_DEG)
@@ -268,6 +282,8 @@ class PamWalkerEnv(gym.Env):
         d.xfrc_applied[:] = 0.0
         mujoco.mj_forward(self.model, d)
         self.drive.reset()
+        if cfg.speed_range_m_s:  # after the start noise: a seed's start pose does not depend on it
+            self.target_speed_m_s = float(self.np_random.uniform(*cfg.speed_range_m_s))
         self._prev_action = np.zeros(self.n_actions)
         self._steps = 0
         self._x0 = float(d.qpos[0])
@@ -347,7 +363,8 @@ class PamWalkerEnv(gym.Env):
         if self.env_cfg.observation_noise_std > 0:
             sensed = (np.asarray(sensed) + self.np_random.normal(0.0, self.env_cfg.observation_noise_std, OBS_BASE)).tolist()
         # float64 values rounded once to float32, as np.concatenate(...).astype(np.float32) would
-        return np.array([*sensed, *self._prev_action.tolist()], dtype=np.float32)
+        command = [self.target_speed_m_s] if self.speed_command else []
+        return np.array([*sensed, *self._prev_action.tolist(), *command], dtype=np.float32)
 
     def reward_features(self, action: np.ndarray, previous: np.ndarray | None, fell: bool,
                         state: _State | None = None) -> list[float]:
@@ -361,7 +378,7 @@ class PamWalkerEnv(gym.Env):
                 -float(np.add.reduce((action - (action if previous is None else previous)) ** 2)),
                 -float(fell),
                 -self.stop_share(state[0]),
-                math.exp(-(((vx - cfg.target_speed_m_s) / cfg.speed_sigma_m_s) ** 2)),
+                math.exp(-(((vx - self.target_speed_m_s) / cfg.speed_sigma_m_s) ** 2)),
                 -self._slip]
 
     def stop_share(self, qpos: list[float]) -> float:
@@ -413,4 +430,5 @@ class PamWalkerEnv(gym.Env):
             "joint_torque_nm": self.data.qfrc_actuator[self._qvel_idx],
             "fell": bool(fell),
             "physics_error": np.bool_(physics_error),  # numpy: TorchRL's info reader needs a dtype
+            "target_speed_m_s": np.float64(self.target_speed_m_s),  # v*, this episode's
         }

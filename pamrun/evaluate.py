@@ -279,7 +279,7 @@ def load_agents(spec: str, cfg) -> tuple[list[Agent], list[dict], list[dict]]:
         try:
             agent = load_agent(path)
             kw = env_kwargs(agent, cfg)
-            check_fits(agent, *space_sizes(kw["muscle"]))
+            check_fits(agent, *space_sizes(kw["muscle"], kw["env"]))
         except CheckpointError as err:
             errors.append({"path": err.path, "error": err.message})
             continue
@@ -554,7 +554,8 @@ def gait_table(ranked: list[dict], limit: int = 20):
     """The gait metrics' means (and spreads) per agent (pamrun.gait defines them)."""
     from rich.table import Table
 
-    table = Table(title="Gait (means ± std over episodes; 'at a stop': the joint most often within 2° of a stop)")
+    table = Table(title="Gait (means ± std over episodes; 'at a stop': the joint most often within 2° of a stop, "
+                        "knees only in swing)")
     for col in ("#", "agent", "speed (m/s)", "steps/s", "stride (m)", "symmetry time/length", "duty", "at a stop",
                 "slip (m/s)", "CoT", "air (NL/m)"):
         table.add_column(col, justify="left" if col == "agent" else "right", no_wrap=col != "agent", overflow="fold")
@@ -566,6 +567,6 @@ def gait_table(ranked: list[dict], limit: int = 20):
         table.add_row(str(row["rank"]), row["agent"], pm(row, "speed"), pm(row, "step_frequency_hz"),
                       pm(row, "stride_length_m"),
                       f"{row['step_time_symmetry_mean']:.2f} / {row['step_length_symmetry_mean']:.2f}",
-                      f"{row['duty_factor_mean']:.2f}", f"{row['stop_share_max_mean']:.0%}", pm(row, "foot_slip_m_s"),
+                      f"{row['duty_factor_mean']:.2f}", f"{row['stop_share_gait_max_mean']:.0%}", pm(row, "foot_slip_m_s"),
                       pm(row, "cost_of_transport"), pm(row, "air_nl_per_m", ".1f"))
     return table

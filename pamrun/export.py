@@ -98,7 +98,7 @@ def actor_of(agent: Agent):
 
 def metadata(agent: Agent, file_format: str) -> dict[str, Any]:
     """What the exported file says about its input and output (see the module docstring)."""
-    layout = observation_structure(agent.action_size)
+    layout = observation_structure(agent.action_size, as_config(agent.config.get("env"), EnvConfig).speed_command)
     return {
         "format": file_format,
         "input": "observation", "output": "action",

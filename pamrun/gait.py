@@ -32,7 +32,9 @@ Definitions (the manual of :func:`episode_metrics`):
   ``stop_margin_rad`` of its lower or upper limit (or past it).
 * **knee swing stop share**: the share of the rows in which a foot is off the ground and its
   knee lies within ``stop_margin_rad`` of a stop, pooled over both legs (the knee's stop share
-  counts its lock in stance, by design; in swing a walker's knee bends).
+  counts its lock in stance, by design; in swing a walker's knee bends). ``stop_share_gait_max``
+  is the largest stop share counting the knees in swing only (the walker issue's target: no
+  joint at a stop more than 30 % of the time but the knee's lock in stance).
 * **foot slip**: mean horizontal (x, y) speed of a foot's ground point between consecutive
   rows in which the foot is in contact in both, pooled over both feet. The ground point is
   the contact sphere lowest at the first of the two rows, followed to the second: a foot
@@ -74,6 +76,7 @@ GAIT_METRICS = (
     *(f"stop_share_{joint}" for joint in JOINTS),
     "stop_share_max",
     "knee_swing_stop_share",
+    "stop_share_gait_max",
     "foot_slip_m_s",
     "cost_of_transport",
     "air_nl",
@@ -259,6 +262,8 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
         out[f"stop_share_{joint}"] = float(share)
     out["stop_share_max"] = float(np.max(shares))
     out["knee_swing_stop_share"] = knee_swing_stop_share(steps["joint_angle_rad"], contact, spec)
+    out["stop_share_gait_max"] = float(np.nanmax([*(sh for j, sh in zip(JOINTS, shares) if "knee" not in j),
+                                                  out["knee_swing_stop_share"]]))
 
     out["foot_slip_m_s"] = foot_slip_m_s(steps, contact)
 

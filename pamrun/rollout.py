@@ -64,9 +64,11 @@ def env_kwargs(agent: Agent, cfg) -> dict[str, dict]:
 
 
 def eval_env_options(ecfg) -> dict:
-    """What the evaluation sets of every agent's task: its start noise and episode length."""
+    """What the evaluation sets of every agent's task: its start noise, episode length and a
+    commanded speed held for the episode (``eval.speed_m_s``, else the agent's own v*)."""
+    speed = {} if ecfg.speed_m_s is None else {"target_speed_m_s": ecfg.speed_m_s}
     return {"reset_noise_rad": ecfg.reset_noise_rad, "reset_velocity_noise": ecfg.reset_velocity_noise,
-            "episode_s": ecfg.episode_s}
+            "episode_s": ecfg.episode_s, "speed_range_m_s": [], **speed}
 
 
 def perturb(kwargs: dict[str, dict], perturbation, where: str, strength: float = 1.0) -> dict[str, dict]:

@@ -26,6 +26,7 @@ import numpy as np
 from pamrun.body import JOINTS, LEG_JOINTS, SIDES, mirror_sign
 
 _TORSO_SIGNS = [-1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1]  # y, z, roll, pitch, yaw, vx, vy, vz, wx, wy, wz
+SENSED = len(_TORSO_SIGNS) + 2 * len(JOINTS) + 2  # then the foot forces; the previous action follows (env.OBS_BASE)
 
 
 def joint_map() -> tuple[np.ndarray, np.ndarray]:
@@ -49,14 +50,16 @@ def action_map(n_actions: int) -> tuple[np.ndarray, np.ndarray]:
     return np.stack([muscle1, muscle2], axis=1).reshape(-1), np.ones(2 * n)
 
 
-def observation_map(n_actions: int) -> tuple[np.ndarray, np.ndarray]:
-    """The mirror image of an observation o is o[index] * sign (the env's observation table)."""
+def observation_map(n_actions: int, speed_command: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The mirror image of an observation o is o[index] * sign (the env's observation table; the
+    commanded speed, last with ``env.speed_command``, is its own mirror image)."""
     j_index, j_sign = joint_map()
     a_index, a_sign = action_map(n_actions)
     n_torso, n = len(_TORSO_SIGNS), len(JOINTS)
+    command = np.arange(SENSED + n_actions, SENSED + n_actions + int(speed_command))
     index = np.concatenate([np.arange(n_torso), n_torso + j_index, n_torso + n + j_index,
-                            n_torso + 2 * n + np.array([1, 0]), n_torso + 2 * n + 2 + a_index])
-    sign = np.concatenate([_TORSO_SIGNS, j_sign, j_sign, [1.0, 1.0], a_sign])
+                            n_torso + 2 * n + np.array([1, 0]), SENSED + a_index, command])
+    sign = np.concatenate([_TORSO_SIGNS, j_sign, j_sign, [1.0, 1.0], a_sign, [1.0] * speed_command])
     return index, sign.astype(float)
 
 
@@ -80,8 +83,9 @@ def mirror_batch(batch):
     import torch
 
     n_actions = batch["action"].shape[-1]
+    speed_command = batch["observation"].shape[-1] > SENSED + n_actions
 
-    o_index, o_sign = (torch.as_tensor(x) for x in observation_map(n_actions))
+    o_index, o_sign = (torch.as_tensor(x) for x in observation_map(n_actions, speed_command))
     a_index, a_sign = (torch.as_tensor(x) for x in action_map(n_actions))
     out = batch.clone()
     for key in ("observation", ("next", "observation")):

@@ -89,7 +89,7 @@ def make_learner(cfg: Config) -> agents.Learner:
     probe = make_env(cfg)  # the env's action spec, as TorchRL sees it (the losses and exploration need it)
     spec = probe.action_spec_unbatched
     probe.close()
-    return agents.make_learner(cfg.algo, *space_sizes(cfg.muscle), spec)
+    return agents.make_learner(cfg.algo, *space_sizes(cfg.muscle, cfg.env), spec)
 
 
 def make_buffer(cfg: Config, curriculum: WalkCurriculum):

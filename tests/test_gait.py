@@ -168,6 +168,25 @@ def test_stop_shares():
     assert m["stop_share_max"] == 1.0
 
 
+def test_knee_stop_counts_in_swing_only():
+    """A knee locked at its stop in stance is by design; straight in swing it counts: the right
+    knee straight throughout, the left bent in swing: knee swing stop share = the right foot's
+    swing rows over all swing rows; the gait maximum ignores the knees' stance rows."""
+    steps = walk(60, 20, 10, 12, 0.4, 0.4)
+    down = steps["foot_force_n"] > 0
+    q = np.zeros((60, 10))
+    q[:, 2] = -0.5  # right knee on its stop, stance and swing
+    q[:, 7] = np.where(down[:, 1], -0.5, -0.2)  # left knee on its stop in stance, bent in swing
+    q[:, 0] = np.where(np.arange(60) < 15, 0.5, 0.0)  # right hip pitch at a stop in 15 of 60 rows
+    steps["joint_angle_rad"] = q
+    m = episode_metrics(steps, spec())
+    swing = ~down
+    assert m["knee_swing_stop_share"] == pytest.approx(swing[:, 0].sum() / swing.sum())
+    assert m["stop_share_right_knee"] == 1.0 and m["stop_share_max"] == 1.0
+    assert m["stop_share_gait_max"] == pytest.approx(max(0.25, m["knee_swing_stop_share"]))
+    assert 0.25 < m["stop_share_gait_max"] < 1.0
+
+
 # --------------------------------------------------------------------------- slip
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import Any, Optional
 
 from pamrun.config.checks import ConfigError, _non_negative, _positive, _require
 
@@ -115,6 +115,9 @@ class EvalConfig:
     reset_noise_rad: float = 0.01  # uniform start-pose noise on the joint angles (0 = the thesis' nominal pose)
     reset_velocity_noise: float = 0.0  # uniform start noise on the joint velocities [rad/s]
     episode_s: float = 10.0  # Tf (§9)
+    # v* [m/s], the speed an agent trained with env.speed_command is told, held the whole episode
+    # (sets env.target_speed_m_s; an agent's drawn speed range is not used here). None = its own.
+    speed_m_s: Optional[float] = None
     # Walk test (§10.3): walk walk_duration_s without falling, never leaving |y| <= walk_lateral_m,
     # ending at least walk_distance_m forward.
     walk_duration_s: float = 10.0
@@ -145,6 +148,8 @@ class EvalConfig:
         _require(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
         _require(self.selection_seed >= 0, "selection_seed", f"must be >= 0, got {self.selection_seed}")
         _non_negative(self, "reset_noise_rad", "reset_velocity_noise", "walk_distance_m")
+        _require(self.speed_m_s is None or (math.isfinite(self.speed_m_s) and self.speed_m_s >= 0), "speed_m_s",
+                 f"must be a speed >= 0 in m/s, got {self.speed_m_s}")
         _positive(self, "episode_s", "walk_duration_s", "walk_lateral_m")
         _require(self.walk_duration_s <= self.episode_s + 1e-9, "walk_duration_s",
                  f"must be <= episode_s ({self.episode_s} s): an episode ends before the test could pass")

@@ -52,6 +52,10 @@ class EnvConfig:
     max_tilt_rad: float = math.pi / 4  # |roll|, |pitch|, |yaw| limit (example's check)
     target_speed_m_s: float = 1.0  # v*: the speed reward.kspeed pays most for (the thesis' agents walked 0.6-1.1 m/s)
     speed_sigma_m_s: float = 0.5  # sigma: how fast reward.kspeed's pay falls off around v*
+    speed_command: bool = False  # the observation ends with v*, the commanded speed [m/s]: the policy is told it
+    # [low, high]: v* drawn uniformly per episode (to train a commanded speed; needs speed_command);
+    # [] = v* is target_speed_m_s (pamrun eval eval.speed_m_s=V sets it)
+    speed_range_m_s: list[float] = field(default_factory=list)
     reset_noise_rad: float = 0.0  # uniform noise on joint angles at reset
     reset_velocity_noise: float = 0.0  # uniform noise on joint velocities [rad/s]
     # Perturbations (pamrun eval's robustness suite uses them; a user can train under them too):
@@ -64,6 +68,12 @@ class EnvConfig:
         _positive(self, "control_dt_s", "episode_s", "physics_dt_s", "max_lateral_m", "max_tilt_rad", "speed_sigma_m_s")
         _non_negative(self, "reset_noise_rad", "reset_velocity_noise", "observation_noise_std", "push_time_s")
         _positive(self, "push_duration_s")
+        _require(math.isfinite(self.target_speed_m_s), "target_speed_m_s", "must be finite")
+        r = list(self.speed_range_m_s)
+        _require(not r or (len(r) == 2 and all(math.isfinite(v) for v in r) and 0 <= r[0] <= r[1]), "speed_range_m_s",
+                 f"must be [] or [low, high] with 0 <= low <= high in m/s, got {r}")
+        _require(not r or self.speed_command, "speed_range_m_s",
+                 "needs env.speed_command=true: a policy asked for a drawn speed must be told it")
         _require(len(self.push_impulse_ns) == 3 and all(math.isfinite(v) for v in self.push_impulse_ns),
                  "push_impulse_ns", f"must be three finite values [x, y, z] in N s, got {list(self.push_impulse_ns)}")
         if any(self.push_impulse_ns):
