@@ -30,7 +30,7 @@ from pamrun.config import CONF_DIR, ConfigError, validate
 COMMANDS: dict[str, tuple[str, str, str]] = {
     "muscle step": ("pamrun.lab", "muscle_step", "step responses of one antagonistic pair vs thesis §10.1"),
     "muscle calibrate": ("pamrun.lab", "muscle_calibrate", "fit the spring table S(P) to the §10.1 step responses"),
-    "muscle curves": ("pamrun.lab", "muscle_curves", "force-contraction curves and surface (Figs 8.9, 8.10)"),
+    "muscle curves": ("pamrun.lab", "muscle_curves", "both force laws vs measured, and the surface (Figs 8.9, 8.10)"),
     "body": ("pamrun.lab", "body", "generate the robot: robot.xml, body.json, robot.png (thesis §8.1-8.2)"),
     "openloop": ("pamrun.lab", "openloop", "pressure steps on each joint, torso fixed (thesis §10.2)"),
     "capacity": ("pamrun.lab", "capacity", "muscle torque and stiffness vs standing and walking demand, per joint"),

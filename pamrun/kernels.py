@@ -2,8 +2,9 @@
 
 One call does for all 20 muscles what :meth:`pamrun.actuation.MuscleDrive.apply` does with
 numpy (``muscle.kernel=numpy``, the reference) in some forty array operations: the
-regulator's first-order lag (:meth:`pamrun.muscle.Regulator.step`), the force polynomial's
-coefficients at the new pressures (:meth:`pamrun.muscle.ThesisPolynomial.at_pressure`), the
+regulator's first-order lag (:meth:`pamrun.muscle.Regulator.step`), the force law's
+coefficients at the new pressures (:meth:`pamrun.force_laws.CoefficientLaw.at_pressure`; every
+law is a 6 x 6 matrix of x^i P^j, so every law runs here unchanged), the
 dampers from the spring table (:class:`pamrun.muscle.SpringTable`), the contractions at the
 joint angles, force and slope by Horner's rule, and MuJoCo's actuator inputs. Every
 operation is the reference's, in the reference's order, except the coefficients
@@ -83,7 +84,7 @@ def _spring_band(p, edges, last):
 @njit(cache=True)
 def _at_pressure(params, pressure, law, edges, springs, joint, coef, damping):
     """What depends on pressure only: the force law reduced to each muscle's pressure, ``coef``
-    a_i(P) [N / %^i] (ThesisPolynomial.at_pressure), and each pair's dampers
+    a_i(P) [N / %^i] (CoefficientLaw.at_pressure), and each pair's dampers
     k (D1 + D2) r^2 [N m s/rad] with D = tau S (thesis §8.3), into ``damping``."""
     muscle_max, law_max = params[P_MUSCLE_MAX], params[P_LAW_MAX]
     tau, length_scale = params[P_TAU], params[P_LENGTH_SCALE]
@@ -95,7 +96,7 @@ def _at_pressure(params, pressure, law, edges, springs, joint, coef, damping):
             if p > muscle_max:  # AntagonisticPairs.pressure_kpa: np.minimum (NaN stays)
                 p = muscle_max
             spring_sum += springs[_spring_band(p, edges, last)]
-            # ThesisPolynomial.at_pressure: a_i = sum_j c_ij P^j, P clipped to [0, law max]
+            # CoefficientLaw.at_pressure: a_i = sum_j c_ij P^j, P clipped to [0, law max]
             p = _clip(p, 0.0, law_max)
             p2 = p * p  # P^j by products (numpy: libm pow, several times slower)
             p3 = p2 * p
@@ -110,7 +111,7 @@ def _at_pressure(params, pressure, law, edges, springs, joint, coef, damping):
 @njit(cache=True)
 def _force_and_slope(coef, k, s, x):
     """One muscle's force F [N] (never negative) and slope dF/dx [N/%] (0 where slack) at
-    contraction x [%], by Horner's rule (ThesisPolynomial.force_and_slope)."""
+    contraction x [%], by Horner's rule (CoefficientLaw.force_and_slope)."""
     force = coef[5, k, s] * x + coef[4, k, s]
     slope = 5.0 * coef[5, k, s] * x + 4.0 * coef[4, k, s]
     for i in (3, 2, 1):

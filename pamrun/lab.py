@@ -16,7 +16,8 @@ from rich.table import Table
 
 from pamrun import plots
 from pamrun.config import SPRING_FILE, Config, to_object
-from pamrun.muscle import FORCE_LAWS, calibrate_spring, simulate_step
+from pamrun.force_laws import FORCE_LAWS, MARTENS_BOBLAN_DMSP20_300
+from pamrun.muscle import calibrate_spring, simulate_step
 from pamrun.runio import console as make_console, run_dir
 
 console = make_console()  # a terminal's width, or wide enough in a log that no table is cut
@@ -134,33 +135,61 @@ def spring_yaml(edges_kpa: list[float], table: list[float], fitted: list[int]) -
     )
 
 
-def muscle_curves(dcfg: DictConfig) -> None:
-    """``pamrun muscle curves``: force_curves.png (Fig. 8.10) and force_surface.png (Fig. 8.9)."""
-    cfg: Config = to_object(dcfg)
-    out = run_dir()
-    law = FORCE_LAWS[cfg.muscle.force_law](cfg.muscle.max_pressure_kpa)
+def force_curve_data(force_law: str, max_pressure_kpa: float) -> dict:
+    """What ``force_curves.json`` holds: the configured law's F(x, P) surface [N] (never
+    negative), every law's curves at every 100 kPa and at the measured DMSP-20-300's pressures,
+    and those measured points (Martens & Boblan 2017)."""
+    laws = {name: law_class(max_pressure_kpa) for name, law_class in FORCE_LAWS.items()}
     x = np.linspace(-3.0, 30.0, 133)
-    p = np.linspace(0.0, cfg.muscle.max_pressure_kpa, 33)
-    force = np.maximum(law.signed_force_n(x[None, :], p[:, None]), 0.0)
-    data = {
+    p = np.linspace(0.0, max_pressure_kpa, 33)
+    curve_p = [float(v) for v in np.arange(0.0, max_pressure_kpa + 1, 100.0)]
+    measured_p = sorted({float(row[0]) for row in MARTENS_BOBLAN_DMSP20_300})
+
+    def forces(law, pressures) -> list:
+        return np.maximum(law.signed_force_n(x[None, :], np.asarray(pressures)[:, None]), 0.0).round(3).tolist()
+
+    return {
+        "force_law": force_law,
         "contraction_pct": x.round(4).tolist(),
         "pressure_kpa": p.round(3).tolist(),
-        "force_n": force.round(3).tolist(),
-        "curve_pressures_kpa": [float(v) for v in np.arange(0.0, cfg.muscle.max_pressure_kpa + 1, 100.0)],
+        "force_n": forces(laws[force_law], p),
+        "curve_pressures_kpa": curve_p,
+        "curves_n": {name: forces(law, curve_p) for name, law in laws.items()},
+        "measured_pressures_kpa": measured_p,
+        "measured_curves_n": {name: forces(law, measured_p) for name, law in laws.items()},
+        "measured": {"source": "Festo DMSP-20-300, Martens & Boblan 2017 (THESIS.md §8)",
+                     "points": [{"pressure_kpa": a, "contraction_pct": b, "force_n": c}
+                                for a, b, c in MARTENS_BOBLAN_DMSP20_300]},
     }
+
+
+def muscle_curves(dcfg: DictConfig) -> None:
+    """``pamrun muscle curves``: force_curves.png (Fig. 8.10, every force law against the measured
+    DMSP-20-300) and force_surface.png (Fig. 8.9, the configured ``muscle.force_law``)."""
+    cfg: Config = to_object(dcfg)
+    out = run_dir()
+    top = cfg.muscle.max_pressure_kpa
     path = out / "force_curves.json"
-    path.write_text(json.dumps(data))
+    path.write_text(json.dumps(force_curve_data(cfg.muscle.force_law, top)))
     plots.force_curves(path, out / "force_curves.png", out / "force_surface.png")
-    table = Table(title="DMSP-20 force (N) at contraction x, pressure P (thesis Table 8.4 polynomial)")
+    table = Table(title="DMSP-20 force (N) at contraction x, pressure P, per force law")
     table.add_column("P (kPa)", justify="right")
+    table.add_column("law")
     shown = [0, 5, 10, 15, 20, 25]
     for xc in shown:
         table.add_column(f"x={xc}%", justify="right")
+    laws = {name: law_class(top) for name, law_class in FORCE_LAWS.items()}
     for pk in (200, 400, 600, 800):
-        vals = np.maximum(law.signed_force_n(np.array(shown, float), float(pk)), 0.0)
-        table.add_row(str(pk), *(f"{v:.0f}" for v in vals))
+        for name, law in laws.items():
+            vals = np.maximum(law.signed_force_n(np.array(shown, float), float(pk)), 0.0)
+            table.add_row(str(pk), name, *(f"{v:.0f}" for v in vals))
     console.print(table)
-    console.print("Wrote force_curves.json, force_curves.png, force_surface.png")
+    p, x, f = np.asarray(MARTENS_BOBLAN_DMSP20_300, float).T
+    for name, law in laws.items():
+        miss = np.maximum(law.signed_force_n(x, p), 0.0) - f
+        console.print(f"{name}: RMSE {np.sqrt(np.mean(miss**2)):.0f} N, worst {np.abs(miss).max():.0f} N against the "
+                      f"{len(f)} measured DMSP-20-300 points (Martens & Boblan 2017)")
+    console.print(f"Wrote force_curves.json, force_curves.png, force_surface.png (surface: {cfg.muscle.force_law})")
 
 
 # --------------------------------------------------------------------------- robot

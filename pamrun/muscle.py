@@ -3,20 +3,22 @@
 A Festo DMSP-20-260N fluidic muscle is modelled, as in the thesis, by three parts:
 
 * a **force law** F(x, P): the static contractile force [N] at contraction x [% of the
-  260 mm nominal length] and pressure P [kPa] (Table 8.4's fifth-order polynomial);
+  260 mm nominal length] and pressure P [kPa] (Table 8.4's fifth-order polynomial, or a
+  geometric model fitted to it: pamrun/force_laws.py, imported here);
 * a **pressure regulator** (Festo VPPM): command voltage [V] -> pressure [kPa], clipped to
   its 0.1-10 bar range, with an optional first-order lag;
 * **dynamics** D x' + S x = Fce - FL (§8.3, first-order three-element model): x is the
   muscle's displacement [m] measured from its rest contraction, S(P) [N/m] a table per
   pressure band, D = tau * S, Fce = F(x, P) of this muscle and FL = F(x2, P2) of its
-  antagonist. The signed polynomial is used inside the dynamics (a muscle past its
+  antagonist. The signed force law is used inside the dynamics (a muscle past its
   zero-force contraction is pulled back); the force it applies to a joint is never
   negative (a muscle cannot push).
 
 Everything works on arrays of shape (n_pairs, 2) so the 20 muscles of the robot step at
-once. Force laws and dynamics are looked up by name in :data:`FORCE_LAWS` and
-:data:`DYNAMICS`, so another law (a geometric model, inflation/deflation hysteresis) is
-one class, one registry entry and its name in ``pamrun.config.robot.FORCE_LAW_NAMES`` away.
+once. Force laws and dynamics are looked up by name in :data:`FORCE_LAWS`
+(pamrun/force_laws.py) and :data:`DYNAMICS`, so another law (inflation/deflation
+hysteresis, say) is one class, one registry entry and its name in
+``pamrun.config.robot.FORCE_LAW_NAMES`` away.
 """
 
 from __future__ import annotations
@@ -25,109 +27,21 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pamrun.config.robot import SPRING_REFERENCE_LENGTH_M
+from pamrun.config.robot import MUSCLE_INNER_DIAMETER_M, SPRING_REFERENCE_LENGTH_M  # noqa: F401  (D0 per size)
+from pamrun.force_laws import (  # noqa: F401  (the force laws, also reachable from here)
+    FITTED_MIN_CONTRACTION_PCT,
+    FITTED_PRESSURE_KPA,
+    FORCE_LAWS,
+    THESIS_COEFFICIENTS,
+    CoefficientLaw,
+    ThesisPolynomial,
+    TonduLopez,
+    contractile_force,
+    zero_force_contraction_pct,
+)
 
 if TYPE_CHECKING:
     from pamrun.config import MuscleConfig, PairConfig, RegulatorConfig, SpringConfig, StepExperiment
-
-# F(x, P) = sum p_ij x^i P^j, x in %, P in kPa (thesis Table 8.4; LAR fit, R^2 = 0.9999,
-# RMSE 5.875 N, fitted for -3 % <= x <= zero-force contraction and 0 <= P <= 800 kPa).
-THESIS_COEFFICIENTS: dict[tuple[int, int], float] = {
-    (0, 0): -0.002697,
-    (1, 0): -93.8,
-    (0, 1): 2.917,
-    (2, 0): 13.05,
-    (1, 1): -0.04264,
-    (0, 2): -0.001793,
-    (3, 0): -0.9395,
-    (2, 1): -0.001597,
-    (1, 2): -0.0001142,
-    (0, 3): 4.694e-06,
-    (4, 0): 0.03335,
-    (3, 1): 6.106e-06,
-    (2, 2): 2.699e-06,
-    (1, 3): 1.25e-07,
-    (0, 4): -5.675e-09,
-    (5, 0): -0.0004611,
-    (4, 1): 9.334e-07,
-    (3, 2): -1.221e-08,
-    (2, 3): -1.463e-09,
-    (1, 4): -4.929e-11,
-    (0, 5): 2.492e-12,
-}
-FITTED_PRESSURE_KPA = (0.0, 800.0)  # thesis §8.3: 0-8 bar in 0.5 bar steps
-FITTED_MIN_CONTRACTION_PCT = -3.0  # thesis §8.3: -7.8 mm of stroke
-
-
-class ThesisPolynomial:
-    """The thesis' fitted contractile force F(x, P) (Table 8.4), vectorised.
-
-    Outside the fitted range: pressure is clamped to [0, ``max_pressure_kpa``] kPa (the
-    fifth-order terms diverge beyond 8 bar); contraction is not clamped, so below -3 %
-    (a muscle stretched past its nominal length) the polynomial is extrapolated and keeps
-    pulling harder, and past the zero-force contraction the signed value turns negative.
-
-    Hot paths first reduce F to a polynomial in x at the current pressures
-    (:meth:`at_pressure`, once per pressure change) and then evaluate it by Horner's rule
-    (:meth:`force_and_slope`, a dozen array operations), since pressure changes once per
-    control step while contraction changes every physics step.
-    """
-
-    def __init__(self, max_pressure_kpa: float = FITTED_PRESSURE_KPA[1]):
-        self.max_pressure_kpa = max_pressure_kpa
-        self.coefficients = np.zeros((6, 6))  # [i, j]: x^i P^j
-        for (i, j), value in THESIS_COEFFICIENTS.items():
-            self.coefficients[i, j] = value
-
-    def at_pressure(self, pressure_kpa: np.ndarray) -> np.ndarray:
-        """Coefficients a_i(P) [N / %^i], shape (6, *P.shape): F(x, P) = sum_i a_i x^i."""
-        p = np.clip(np.asarray(pressure_kpa, float), 0.0, self.max_pressure_kpa)
-        powers = p[None, ...] ** np.arange(6).reshape((6,) + (1,) * p.ndim)
-        return np.tensordot(self.coefficients, powers, axes=(1, 0))
-
-    @staticmethod
-    def force_and_slope(coef: np.ndarray, contraction_pct: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Signed F [N] and dF/dx [N per %] at contraction x [%] by Horner's rule."""
-        x = contraction_pct
-        force = coef[5] * x + coef[4]
-        slope = 5.0 * coef[5] * x + 4.0 * coef[4]
-        for i in (3, 2, 1):
-            force = force * x + coef[i]
-            slope = slope * x + i * coef[i]
-        return force * x + coef[0], slope
-
-    def signed_force_n(self, contraction_pct: np.ndarray, pressure_kpa: np.ndarray) -> np.ndarray:
-        """Raw polynomial value [N]; negative past the zero-force contraction."""
-        x, p = np.broadcast_arrays(np.asarray(contraction_pct, float), np.asarray(pressure_kpa, float))
-        return self.force_and_slope(self.at_pressure(p), x)[0]
-
-    def slope_n_per_pct(self, contraction_pct: np.ndarray, pressure_kpa: np.ndarray) -> np.ndarray:
-        """dF/dx [N per % of contraction] (negative: force drops as the muscle shortens)."""
-        x, p = np.broadcast_arrays(np.asarray(contraction_pct, float), np.asarray(pressure_kpa, float))
-        return self.force_and_slope(self.at_pressure(p), x)[1]
-
-
-FORCE_LAWS = {"thesis_polynomial": ThesisPolynomial}
-
-_DEFAULT_LAW = ThesisPolynomial()
-
-
-def contractile_force(contraction_pct, pressure_kpa):
-    """Force [N] a DMSP-20 applies at a contraction [%] and pressure [kPa] (thesis Table 8.4).
-
-    Vectorised over numpy arrays (broadcasting). Never negative: a muscle cannot push, so
-    past the zero-force contraction the force is 0. Pressure is clamped to the fitted
-    0-800 kPa; contraction below the fitted -3 % is extrapolated (see ThesisPolynomial).
-    """
-    force = _DEFAULT_LAW.signed_force_n(np.asarray(contraction_pct, float), np.asarray(pressure_kpa, float))
-    return np.maximum(force, 0.0)
-
-
-def zero_force_contraction_pct(pressure_kpa: float, law: ThesisPolynomial = _DEFAULT_LAW) -> float:
-    """Contraction [%] at which the muscle's force vanishes at a given pressure [kPa]."""
-    from scipy.optimize import brentq
-
-    return brentq(lambda x: law.signed_force_n(x, pressure_kpa), FITTED_MIN_CONTRACTION_PCT, 45.0)
 
 
 class Regulator:
@@ -235,7 +149,7 @@ class FirstOrderPairDynamics:
     exact at equilibrium, so a robot simulation can step it at 5 ms or more.
     """
 
-    def __init__(self, cfg: MuscleConfig, law: ThesisPolynomial, n_pairs: int):
+    def __init__(self, cfg: MuscleConfig, law: CoefficientLaw, n_pairs: int):
         self.law = law
         self.spring = SpringTable(cfg.spring)
         self.tau_s = cfg.tau_s
@@ -424,9 +338,6 @@ def calibrate_spring(muscle: MuscleConfig, pair: PairConfig) -> tuple[list[float
 
 # --------------------------------------------------------------------------- volume and air
 
-# Inner diameter D0 [m] of each size: the number in the name is the inner diameter in mm
-# (Festo, Fluidic Muscle DMSP/MAS catalogue; THESIS.md §2: the DMSP-20 has a 20 mm one).
-MUSCLE_INNER_DIAMETER_M = {"DMSP-10": 0.010, "DMSP-20": 0.020, "DMSP-40": 0.040}
 # Largest contraction: about 25 % of the nominal length (Festo DMSP catalogue; THESIS.md §8).
 MAX_CONTRACTION_PCT = 25.0
 # Braid angle at which a McKibben muscle stops contracting, arccos(1/sqrt(3)) = 54.7 deg

@@ -42,24 +42,46 @@ def step_response(json_path: Path, png_path: Path) -> Path:
     return _save(fig, png_path, dpi=120)
 
 
+LAW_STYLES = ("-", "--", ":", "-.")  # line style of each force law, in FORCE_LAWS' order (polynomial solid)
+
+
+def _law_panel(ax, x: np.ndarray, pressures: list[float], curves: dict[str, list], points: list[dict]) -> None:
+    """Each law's force against contraction at ``pressures`` (one colour each, one line style
+    per law), and ``points`` (measured force at a pressure) as markers in their pressure's colour."""
+    colors = dict(zip(pressures, plt.cm.viridis(np.linspace(0, 0.9, len(pressures)))))
+    for style, (name, rows) in zip(LAW_STYLES, curves.items()):
+        for pressure, row in zip(pressures, rows):
+            ax.plot(x, row, color=colors[pressure], ls=style, lw=1.3)
+        ax.plot([], [], color="k", ls=style, label=name)
+    for pressure in pressures:
+        ax.plot([], [], color=colors[pressure], lw=4, label=f"{pressure / 100:g} bar")
+    for point in points:
+        ax.plot(point["contraction_pct"], point["force_n"], "o", color=colors[point["pressure_kpa"]], mec="k")
+    ax.set_xlabel("contraction [% of nominal length]")
+    ax.set_ylabel("force [N]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+
+
 def force_curves(json_path: Path, curves_png: Path, surface_png: Path) -> tuple[Path, Path]:
-    """Force against contraction per pressure (Fig. 8.10) and the F(x, P) surface (Fig. 8.9)."""
+    """Force against contraction per pressure (Fig. 8.10) for every force law, the measured
+    DMSP-20-300 points among them, and the configured law's F(x, P) surface (Fig. 8.9)."""
     data = json.loads(Path(json_path).read_text())
     x = np.asarray(data["contraction_pct"])
     p = np.asarray(data["pressure_kpa"])
     f = np.asarray(data["force_n"])  # (len(p), len(x)), never negative
+    law = data.get("force_law", "thesis_polynomial")
+    # a file from before the laws were compared holds the configured law's surface only
+    curves = data.get("curves_n") or {law: [f[int(np.argmin(np.abs(p - pc)))] for pc in data["curve_pressures_kpa"]]}
 
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    colors = plt.cm.viridis(np.linspace(0, 1, len(data["curve_pressures_kpa"])))
-    for color, pc in zip(colors, data["curve_pressures_kpa"]):
-        k = int(np.argmin(np.abs(p - pc)))
-        ax.plot(x, f[k], color=color, label=f"{pc / 100:.0f} bar")
-    ax.set_xlabel("contraction [% of 260 mm]")
-    ax.set_ylabel("force [N]")
-    ax.set_title("DMSP-20 force-contraction (thesis Fig. 8.10)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, ncol=2)
-    curves = _save(fig, curves_png, dpi=120)
+    measured = data.get("measured")
+    fig, axes = plt.subplots(1, 2 if measured else 1, figsize=(13 if measured else 6.5, 4.5), squeeze=False)
+    _law_panel(axes[0, 0], x, data["curve_pressures_kpa"], curves, [])
+    axes[0, 0].set_title("DMSP-20 force-contraction (thesis Fig. 8.10)")
+    if measured:
+        _law_panel(axes[0, 1], x, data["measured_pressures_kpa"], data["measured_curves_n"], measured["points"])
+        axes[0, 1].set_title(f"Measured (markers): {measured['source']}", fontsize=10)
+    curves_path = _save(fig, curves_png, dpi=120)
 
     fig = plt.figure(figsize=(6.5, 5))
     ax3 = fig.add_subplot(projection="3d")
@@ -68,8 +90,8 @@ def force_curves(json_path: Path, curves_png: Path, surface_png: Path) -> tuple[
     ax3.set_xlabel("contraction [%]")
     ax3.set_ylabel("pressure [bar]")
     ax3.set_zlabel("force [N]")
-    ax3.set_title("F(x, P) polynomial (thesis Fig. 8.9)")
-    return curves, _save(fig, surface_png, dpi=120)
+    ax3.set_title(f"F(x, P), {law} (thesis Fig. 8.9)")
+    return curves_path, _save(fig, surface_png, dpi=120)
 
 
 def openloop_movement(json_path: Path, movement: str, png_path: Path) -> Path:

@@ -40,6 +40,9 @@ class RandomizedWalker(gym.Env):
         self.kwargs, self.perturbations, self.prob, self.reach, self.count = kwargs, perturbations, prob, reach, count
         self.names = sorted(perturbations)
         self.nominal = self.env = PamWalkerEnv(**kwargs)
+        nominal = self.nominal  # its validated sections, reused for the sections a draw leaves alone
+        self.typed = {"body": nominal.body_cfg, "muscle": nominal.muscle_cfg, "reward": nominal.reward_cfg,
+                      "env": nominal.env_cfg}
         self.action_space, self.observation_space = self.env.action_space, self.env.observation_space
         self.drawn: tuple[tuple[str, float], ...] = ()  # this episode's perturbations and strengths
 
@@ -67,7 +70,8 @@ class RandomizedWalker(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         kwargs = self.draw()
-        new = self.nominal if kwargs is self.kwargs else PamWalkerEnv(**kwargs)
+        new = self.nominal if kwargs is self.kwargs else PamWalkerEnv(**{
+            k: self.typed[k] if v is self.kwargs[k] else v for k, v in kwargs.items()})
         if self.env is not self.nominal and self.env is not new:
             self.env.close()
         self.env = new

@@ -79,16 +79,19 @@ def perturb(kwargs: dict[str, dict], perturbation, where: str, strength: float =
 
     ``strength`` s goes part of the way (or beyond, s > 1): a factor f becomes 1 + s (f - 1), a
     numeric value v the agent's v0 + s (v - v0) (elementwise for lists); other values are set
-    as they are. s = 1 is the perturbation itself (training's domain randomisation draws s)."""
+    as they are. s = 1 is the perturbation itself (training's domain randomisation draws s).
+    Sections the perturbation does not touch are returned as the same objects."""
     from pamrun.config import ConfigError, flatten
     from pamrun.env import as_config
 
-    out = copy.deepcopy(kwargs)
-    changed = {}
+    out = dict(kwargs)  # sections are copied when first changed; the others stay the same objects
+    changed, touched = {}, set()
     for kind in ("scale", "values"):
         for dotted, value in flatten(getattr(perturbation, kind)).items():
             key = f"{where}.{kind}.{dotted}"
             section, *path = dotted.split(".")
+            if section not in touched:
+                out[section], touched = copy.deepcopy(kwargs[section]), touched | {section}
             node = out[section]
             for name in path[:-1]:
                 if not isinstance(node.get(name), dict):
@@ -107,9 +110,9 @@ def perturb(kwargs: dict[str, dict], perturbation, where: str, strength: float =
                 value = _partway(old, value, strength)
             node[path[-1]] = value
             changed[dotted] = key
-    for section, values in out.items():
+    for section in sorted(touched):  # validated like any config (the others are as they were)
         try:
-            out[section] = asdict(as_config(values, SECTION_TYPES[section]))
+            out[section] = asdict(as_config(out[section], SECTION_TYPES[section]))
         except ConfigError as err:
             name = f"{section}.{err.key}"
             raise ConfigError(changed.get(name, f"{where} ({name})"), err.message) from None

@@ -107,14 +107,18 @@ class SpringConfig:
 
 
 # Festo DMSP fluidic muscles by inner diameter: catalogue maximum force [N] (Festo, Fluidic
-# Muscle DMSP/MAS catalogue; THESIS.md §8). The thesis' force polynomial (Table 8.4) is for
-# the DMSP-20; another size scales it by the ratio of these ratings (see MuscleConfig).
+# Muscle DMSP/MAS catalogue; THESIS.md §8). Every force law (the thesis' polynomial, Table 8.4,
+# and the Tondu-Lopez model fitted to it) is the DMSP-20's; another size scales it by the ratio
+# of these ratings (see MuscleConfig).
 MUSCLE_RATED_FORCE_N = {"DMSP-10": 630.0, "DMSP-20": 1500.0, "DMSP-40": 6000.0}
+# Inner diameter D0 [m] of each size: the number in the name is the inner diameter in mm
+# (Festo, Fluidic Muscle DMSP/MAS catalogue; THESIS.md §2: the DMSP-20 has a 20 mm one).
+MUSCLE_INNER_DIAMETER_M = {"DMSP-10": 0.010, "DMSP-20": 0.020, "DMSP-40": 0.040}
 FITTED_SIZE = "DMSP-20"
 COUPLINGS = ("thesis", "kinematic")
 # Names of the force laws and muscle dynamics pamrun/muscle.py implements (its FORCE_LAWS and
 # DYNAMICS registries hold one class per name; a test keeps the two in step).
-FORCE_LAW_NAMES = ("thesis_polynomial",)
+FORCE_LAW_NAMES = ("thesis_polynomial", "tondu_lopez")
 DYNAMICS_NAMES = ("first_order",)
 COMMANDS = ("antagonistic", "independent")
 # How MuscleDrive steps the kinematic coupling: pamrun/kernels.py (compiled) or numpy (the reference).
@@ -179,8 +183,8 @@ class MuscleConfig:
     exactly (one DMSP-20-260 per direction, thesis coupling, 2.12 +- 0.71 V, 8 bar, ideal
     regulator). Fields:
 
-    * ``size``: DMSP-10, -20 or -40. The force law F(x, P) is the thesis' DMSP-20 fit;
-      another size multiplies it by the ratio of Festo's rated forces (0.42, 1, 4). Chou &
+    * ``size``: DMSP-10, -20 or -40. The force law F(x, P) (``force_law``, either) is the
+      DMSP-20's; another size multiplies it by the ratio of Festo's rated forces (0.42, 1, 4). Chou &
       Hannaford's model scales force with D0^2 at equal contraction, which the 20 -> 40 mm
       step matches (x4) and the 10 -> 20 mm step does not (x2.4, not x4): the ratings are the
       measured scale. Contraction stays in % of the nominal length, and the spring S and
@@ -214,7 +218,7 @@ class MuscleConfig:
       slower); both give the same results to float rounding. The thesis coupling is numpy only.
     """
 
-    force_law: str = "thesis_polynomial"  # F(x, P) of Table 8.4
+    force_law: str = "thesis_polynomial"  # F(x, P): thesis_polynomial (Table 8.4) or tondu_lopez (geometric, fitted to it)
     dynamics: str = "first_order"  # D x' + S x = Fce - FL (§8.3), used by the thesis coupling
     size: str = "DMSP-40"  # DMSP-10, DMSP-20 or DMSP-40 (thesis: DMSP-20)
     nominal_length_m: float = 0.30  # nominal length L0 [m] (thesis: 0.26, the DMSP-20-260N)
