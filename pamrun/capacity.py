@@ -22,6 +22,14 @@ For each joint of the left leg (the right one mirrors it) and the configured mus
     THESIS.md; Loram & Lakie 2002: human intrinsic ankle stiffness is ~0.9 m g h).
 * **Margin** = capacity / demand: the envelope's weakest point over the walking range
   against the walking peak, and the zero-action stiffness against m g h.
+* **Air per gait cycle** at the walking demand, an estimate of what a supply must deliver:
+  in each cycle every joint gives its walking peak moment once in each direction, at the
+  middle of its walking range, with the antagonist at the band's low pressure. So each
+  muscle swings once per cycle between that low pressure (antagonist) and the pressure the
+  peak needs as agonist (found by bisection; the muscle's maximum where the peak is out of
+  reach): it is filled once and exhausts once. Air = the growth of P V
+  (:class:`pamrun.muscle.AirMeter`), both legs, every muscle counted. A gait that co-contracts, or moves through larger ranges, uses
+  more; the measured walker's air per metre is in ``pamrun eval``'s gait table.
 """
 
 from __future__ import annotations
@@ -113,6 +121,8 @@ def _joint_capacity(drive, name: str, limits_rad: np.ndarray, pressures: dict[st
     walk_demand = WALKING_PEAK_NM_PER_KG[name] * mass_kg
     gravity_k = load["mass_kg"] * 9.81 * load["height_m"] / 2  # m g h [N m/rad], per leg
     k_zero = _stiffness_nm_per_rad(drive, j, pressures["zero"])
+    air = _cycle_air(drive, j, 0.5 * (walk_lo + walk_hi), walk_demand, pressures["band"][1],
+                     int(getattr(muscle.count, name)))
     return {
         "radius_mm": round(float(drive.radius_m[j]) * 1000, 2),
         "muscles_per_direction": int(getattr(muscle.count, name)),
@@ -129,7 +139,41 @@ def _joint_capacity(drive, name: str, limits_rad: np.ndarray, pressures: dict[st
         "stiffness_zero_action_nm_per_rad": round(k_zero, 2),
         "gravity_stiffness_nm_per_rad": round(gravity_k, 2),
         "stiffness_margin": round(k_zero / gravity_k, 3),
+        **air,
     }
+
+
+def _cycle_air(drive, j: int, angle_rad: float, demand_nm: float, low_kpa: float, count: int) -> dict[str, Any]:
+    """Air [normal litres] joint j's pair (``count`` muscles per direction) draws per gait cycle
+    at the walking demand, both legs (module docstring), and the pressure [kPa] each
+    direction's peak needs (None: out of reach even at the muscle's maximum)."""
+    from pamrun.muscle import MUSCLE_INNER_DIAMETER_M, AirMeter
+
+    muscle = drive.cfg
+    meter = AirMeter(muscle.nominal_length_m, MUSCLE_INNER_DIAMETER_M[muscle.size])
+    top = muscle.max_pressure_kpa
+    angles = np.zeros((1, len(drive.radius_m)))
+    angles[0, j] = angle_rad
+    needs, air = [], 0.0
+    for side, sign in ((0, 1.0), (1, -1.0)):  # muscle 1 pulls the + direction, muscle 2 the -
+        def pressures(p: float) -> np.ndarray:  # this muscle at p, its antagonist at the band's low
+            out = np.full((1, len(drive.radius_m), 2), low_kpa)
+            out[0, j, side] = p
+            return out
+
+        def torque(p: float) -> float:
+            return sign * float(_static_torque_nm(drive, j, angles[:, j], *pressures(p)[0, j])[0])
+
+        p = top
+        if torque(top) >= demand_nm:
+            lo = low_kpa
+            for _ in range(40):  # bisection: the torque grows with the agonist's pressure
+                mid = 0.5 * (lo + p)
+                lo, p = (lo, mid) if torque(mid) >= demand_nm else (mid, p)
+        needs.append(round(float(p), 1) if torque(top) >= demand_nm else None)
+        contraction = drive.coupling.static_contraction_pct(angles, pressures(p))[0, j, side]
+        air += meter.drawn_nl(meter.gas_kpa_l(low_kpa, contraction), meter.gas_kpa_l(p, contraction))
+    return {"walking_pressures_kpa": needs, "air_per_cycle_nl": round(2 * count * air, 4)}  # 2 legs
 
 
 def analyse(muscle: MuscleConfig, body: BodyConfig, n_angles: int = 91) -> dict[str, Any]:
@@ -162,6 +206,7 @@ def analyse(muscle: MuscleConfig, body: BodyConfig, n_angles: int = 91) -> dict[
         "required_margin": REQUIRED_MARGIN,
         "lean_deg": LEAN_DEG,
         "joints": joints,
+        "air_per_cycle_nl": round(sum(v["air_per_cycle_nl"] for v in joints.values()), 3),
         "verdict": {"walking_margin_ok": walks, "ankle_stiffness_ok": ankle_stiff,
                     "min_walking_margin": min(v["walking_margin"] for v in joints.values())},
     }

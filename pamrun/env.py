@@ -46,10 +46,10 @@ policy can be told. ``info["target_speed_m_s"]`` holds the episode's v*.
 
 ## Reward (thesis Table 9.3, config group ``reward``)
 r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf - kda sum((a_prev - a_prev2)^2)
-- kfall [fell] - kstop n_stop / n + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip, with Vx the torso's forward velocity, y its lateral
+- kfall [fell] - kstop n_stop / n + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip - kair air, with Vx the torso's forward velocity, y its lateral
 deviation, z - z0 its height change since reset, a_prev the action applied in this step (the
 "previous action" of the next observation) and a_prev2 the one before it (zero at reset).
-The last five terms are not the thesis' (their weights are 0 by default): ``kda`` penalises
+The last six terms are not the thesis' (their weights are 0 by default): ``kda`` penalises
 changes of the command, for the smoother gait the thesis asked for; ``kfall`` is paid once,
 on the step that ends the episode by a fall; ``kstop`` penalises the share n_stop / n of the
 hip and ankle joints, and of the knees of legs whose foot is off the ground, within 2 deg of a
@@ -58,14 +58,17 @@ design, its lock; in swing it should bend); ``kspeed`` pays for walking near
 ``env.target_speed_m_s`` (v*, within ``env.speed_sigma_m_s``) rather than ever faster; ``kslip``
 penalises slip: the horizontal speed [m/s] of each foot's ground point over a control step in
 which the foot is on the ground at both ends, summed over the feet (:mod:`pamrun.gait`'s foot
-slip, per step; a foot is on the ground above its ``CONTACT_WEIGHT_SHARE`` of the weight).
+slip, per step; a foot is on the ground above its ``CONTACT_WEIGHT_SHARE`` of the weight);
+``kair`` penalises the supply air the muscles draw in the step [normal litres]
+(:func:`pamrun.muscle.air_nl`'s rule: a muscle draws while its P V grows; also
+``info["air_nl"]``).
 
 Every term is a weight times an unweighted feature, and this is the formula's one home
 (:meth:`PamWalkerEnv.reward_features`, :data:`REWARD_KEYS`, MyoSuite's style): the features are
 Vx, -y^2, -(z - z0)^2, -sum(a_prev^2), Ts / Tf, -sum((a_prev - a_prev2)^2), -[fell],
--n_stop / n, exp(-((Vx - v*) / sigma)^2) and -slip, all 0 in a step whose physics blew up. ``info["reward_terms"]`` holds the weighted terms under the key of
+-n_stop / n, exp(-((Vx - v*) / sigma)^2), -slip and -air, all 0 in a step whose physics blew up. ``info["reward_terms"]`` holds the weighted terms under the key of
 their weight (``kvx``: forward, ``ky``: lateral, ``kz``: height, ``kv``: effort, ``kt``: alive,
-``kda``: command change, ``kfall``: fall, ``kstop``: joint stops, ``kspeed``: speed, ``kslip``: slip), so a term and the ``reward.<key>`` that scales it
+``kda``: command change, ``kfall``: fall, ``kstop``: joint stops, ``kspeed``: speed, ``kslip``: slip, ``kair``: air), so a term and the ``reward.<key>`` that scales it
 share one name; ``info["reward_unweighted"]`` holds the features in ``REWARD_KEYS`` order and
 ``env.reward_weights`` the weights, so a learner can re-weight any term after the fact
 (pamrun's training stores the features in its replay buffer: :mod:`pamrun.curriculum`).
@@ -111,7 +114,9 @@ from omegaconf import OmegaConf  # noqa: E402
 from pamrun import body as body_mod  # noqa: E402
 from pamrun.actuation import MuscleDrive, joint_limits_rad, n_actions  # noqa: E402
 from pamrun.config import BodyConfig, EnvConfig, MuscleConfig, RewardConfig, to_object  # noqa: E402
+from pamrun.config.robot import LEG_JOINTS, MUSCLE_INNER_DIAMETER_M  # noqa: E402
 from pamrun.gait import CONTACT_WEIGHT_SHARE, STOP_MARGIN_DEG  # noqa: E402
+from pamrun.muscle import AirMeter  # noqa: E402
 from pamrun.task import fell as fell_rule  # noqa: E402
 
 N_JOINTS = len(body_mod.JOINTS)  # the hinges, pamrun.config.LEG_JOINTS on each side
@@ -253,6 +258,10 @@ class PamWalkerEnv(gym.Env):
         self._knee_checks = [(adr, lo, hi, body_mod.SIDES.index(name.split("_")[0]))
                              for adr, lo, hi, name in limits if "knee" in name]
         self.contact_n = CONTACT_WEIGHT_SHARE * self.weight_n  # a foot carrying more is on the ground
+        mc = self.muscle_cfg  # info["air_nl"] and kair's feature
+        self.air_meter = AirMeter(mc.nominal_length_m, MUSCLE_INNER_DIAMETER_M[mc.size],
+                                  [getattr(mc.count, j) for _ in body_mod.SIDES for j in LEG_JOINTS])
+        self._gas, self._air_nl = None, 0.0  # the muscles' gas P V [kPa l] after the last step, this step's air
         self._soles, self._contact, self._slip = None, [False, False], 0.0  # last step's feet, this step's slip
         self._joint_velocities = operator.itemgetter(*self._qvel_idx.tolist())
         self._steps = 0
@@ -289,6 +298,7 @@ class PamWalkerEnv(gym.Env):
         self._x0 = float(d.qpos[0])
         feet, state = self.foot_forces_n(), self._state()
         self._update_slip(feet)
+        self._update_air()
         info = self._info(False, feet, self._fell(state), state)
         info["reward_terms"] = dict.fromkeys(REWARD_KEYS, 0.0)  # as after a step, so info's keys never change
         info["reward_unweighted"] = np.zeros(len(REWARD_KEYS))
@@ -313,6 +323,7 @@ class PamWalkerEnv(gym.Env):
         physics_error = unstable > 0 or not _all_finite(state[0], state[1])
         feet = self.foot_forces_n()
         self._update_slip(feet)
+        self._update_air()
         obs = self._observation(feet, state)
         if physics_error:
             obs = np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
@@ -379,7 +390,8 @@ class PamWalkerEnv(gym.Env):
                 -float(fell),
                 -self.stop_share(state[0]),
                 math.exp(-(((vx - self.target_speed_m_s) / cfg.speed_sigma_m_s) ** 2)),
-                -self._slip]
+                -self._slip,
+                -self._air_nl]
 
     def stop_share(self, qpos: list[float]) -> float:
         """Share of the hip and ankle joints, and of the knees of legs whose foot is off the ground
@@ -389,6 +401,14 @@ class PamWalkerEnv(gym.Env):
         swinging = [(adr, lo, hi) for adr, lo, hi, foot in self._knee_checks if not self._contact[foot]]
         n += sum(not lo < qpos[adr] < hi for adr, lo, hi in swinging)
         return n / (len(self._stop_checks) + len(swinging))
+
+    def _update_air(self) -> None:
+        """This step's supply air [normal litres] (``kair``'s feature, ``info["air_nl"]``): the
+        air meter's between the muscles' gas before and after the step (0 at reset)."""
+        drive = self.drive
+        gas = self.air_meter.gas_kpa_l(drive.pressure_kpa.ravel(), drive.contraction_pct.ravel())
+        self._air_nl = 0.0 if self._gas is None or self._steps == 0 else self.air_meter.drawn_nl(self._gas, gas)
+        self._gas = gas
 
     def _update_slip(self, foot_force_n: np.ndarray) -> None:
         """This step's slip (``kslip``'s feature, module docstring) from the feet's ground points
@@ -431,4 +451,5 @@ class PamWalkerEnv(gym.Env):
             "fell": bool(fell),
             "physics_error": np.bool_(physics_error),  # numpy: TorchRL's info reader needs a dtype
             "target_speed_m_s": np.float64(self.target_speed_m_s),  # v*, this episode's
+            "air_nl": np.float64(self._air_nl),  # supply air drawn in this step [normal litres]
         }

@@ -397,5 +397,9 @@ def capacity(dcfg: DictConfig) -> None:
         + ("[green]yes[/green]" if v["walking_margin_ok"] else f"[red]no[/red] (weakest {v['min_walking_margin']:.2f})")
         + f". Ankle stiffness at zero action ({result['zero_action_kpa']:.0f} kPa both) >= m g h per ankle: "
         + ("[green]yes[/green]" if v["ankle_stiffness_ok"] else "[red]no[/red]")
-        + f". Centre of mass {result['com_height_m']:.3f} m up. Wrote capacity.json, capacity.png"
+        + f". Centre of mass {result['com_height_m']:.3f} m up."
     )
+    air = result["air_per_cycle_nl"]
+    console.print(f"Air at the walking demand: about {air:.1f} normal litres per gait cycle, both legs (each muscle "
+                  f"filled once from the band's low pressure to what its joint's peak needs; {air * 60:.0f} NL/min at one "
+                  "cycle per second). Wrote capacity.json, capacity.png")

@@ -23,6 +23,7 @@ hysteresis, say) is one class, one registry entry and its name in
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -352,6 +353,40 @@ AIR_TEMPERATURE_K = 293.15
 ATMOSPHERE_KPA = 101.325
 
 
+class AirMeter:
+    """The volume, gas and supply air of a robot's muscles (:func:`muscle_volume_l`,
+    :func:`air_nl`), its geometry's constants computed once: the env meters every control
+    step with it (``info["air_nl"]``, ``reward.kair``).
+
+    ``muscles_per_side``: muscles in parallel per direction of each of the 10 joints (one
+    value, or (10,)); arrays of 20 values are the (10, 2) pairs raveled.
+    """
+
+    def __init__(self, nominal_length_m: float, inner_diameter_m: float, muscles_per_side=1,
+                 temperature_k: float = AIR_TEMPERATURE_K):
+        l0 = self.nominal_length_m = float(nominal_length_m)
+        b = (1.0 - MAX_CONTRACTION_PCT / 100.0) * l0 / math.cos(NEUTRAL_BRAID_ANGLE_RAD)  # fibre length [m]
+        turns = b * math.sqrt(1.0 - (l0 / b) ** 2) / (math.pi * inner_diameter_m)
+        self._b2, self._litres = b * b, 1000.0 / (4.0 * math.pi * turns**2)  # m^3 -> litres
+        count = np.asarray(muscles_per_side, float)
+        self.count = np.repeat(count, 2) if count.ndim else count  # both muscles of a joint
+        self.nl_per_kpa_l = NORMAL_TEMPERATURE_K / (NORMAL_PRESSURE_KPA * temperature_k)
+
+    def volume_l(self, contraction_pct) -> np.ndarray:
+        length = (1.0 - np.minimum(contraction_pct, MAX_CONTRACTION_PCT) / 100.0) * self.nominal_length_m
+        return length * (self._b2 - length * length) * self._litres
+
+    def gas_kpa_l(self, pressure_kpa, contraction_pct) -> np.ndarray:
+        """Each muscle's gas amount P V [kPa litres], P absolute (gauge + 101.325 kPa)."""
+        return (np.asarray(pressure_kpa, float) + ATMOSPHERE_KPA) * self.volume_l(contraction_pct)
+
+    def drawn_nl(self, gas_before_kpa_l, gas_after_kpa_l) -> float:
+        """Supply air [normal litres] drawn between two gas states: each muscle's growth of
+        P V, none where it falls (it exhausts to the atmosphere), times its count."""
+        drawn = np.maximum(np.subtract(gas_after_kpa_l, gas_before_kpa_l), 0.0) * self.count
+        return float(drawn.sum() * self.nl_per_kpa_l)
+
+
 def muscle_volume_l(contraction_pct, nominal_length_m: float, inner_diameter_m: float) -> np.ndarray:
     """Inner volume [litres] of one muscle at a contraction [% of nominal length], vectorised.
 
@@ -373,13 +408,7 @@ def muscle_volume_l(contraction_pct, nominal_length_m: float, inner_diameter_m: 
     The rubber wall is ignored (a thin-walled braid): its thickness fills part of the
     cylinder, so the model slightly over-estimates the volume, and with it the air.
     """
-    eps = np.minimum(np.asarray(contraction_pct, float), MAX_CONTRACTION_PCT) / 100.0
-    l0 = nominal_length_m
-    b = (1.0 - MAX_CONTRACTION_PCT / 100.0) * l0 / np.cos(NEUTRAL_BRAID_ANGLE_RAD)  # fibre length [m]
-    sin_theta0 = np.sqrt(1.0 - (l0 / b) ** 2)
-    turns = b * sin_theta0 / (np.pi * inner_diameter_m)
-    length = (1.0 - eps) * l0
-    return length * (b**2 - length**2) / (4.0 * np.pi * turns**2) * 1000.0  # m^3 -> litres
+    return AirMeter(nominal_length_m, inner_diameter_m).volume_l(np.asarray(contraction_pct, float))
 
 
 def air_nl(pressure_kpa, contraction_pct, nominal_length_m: float, inner_diameter_m: float,
@@ -402,10 +431,6 @@ def air_nl(pressure_kpa, contraction_pct, nominal_length_m: float, inner_diamete
     V (p2 - p1) / 101.325 * 273.15 / 293.15 Nl (0.93 V (p2 - p1) / 101.325). Only changes
     between the rows count: the fill before the first row is not included.
     """
-    absolute = np.asarray(pressure_kpa, float) + ATMOSPHERE_KPA
-    gas = absolute * muscle_volume_l(contraction_pct, nominal_length_m, inner_diameter_m)  # kPa litres
-    count = np.asarray(muscles_per_side, float)
-    if count.ndim:
-        count = np.repeat(count, 2)  # both muscles of a joint
-    drawn = np.maximum(np.diff(gas, axis=0), 0.0) * count
-    return float(drawn.sum() / NORMAL_PRESSURE_KPA * NORMAL_TEMPERATURE_K / temperature_k)
+    meter = AirMeter(nominal_length_m, inner_diameter_m, muscles_per_side, temperature_k)
+    gas = meter.gas_kpa_l(pressure_kpa, np.asarray(contraction_pct, float))
+    return meter.drawn_nl(gas[:-1], gas[1:])

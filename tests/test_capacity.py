@@ -55,6 +55,36 @@ def test_default_ankle_stiffness_exceeds_m_g_h_per_ankle(default_capacity):
     assert all(b > a for a, b in zip(list(levels.values())[1:], list(levels.values())[2:]))  # co-contraction stiffens
 
 
+def test_air_per_gait_cycle_at_the_walking_demand(default_capacity):
+    """Each direction's pressure gives the joint's walking peak at mid-range against the band's
+    low pressure, and the air is one fill of each muscle from that low pressure to it, at
+    constant volume (kinematic: the contraction follows the angle only): V (p - p_low) in
+    normal litres, 2 legs x muscles per direction; the joints sum to the robot's total."""
+    from pamrun.capacity import _static_torque_nm
+    from pamrun.muscle import MUSCLE_INNER_DIAMETER_M, muscle_volume_l
+
+    m, body = MuscleConfig(), BodyConfig()
+    drive = MuscleDrive(m, body)
+    low = default_capacity["band_kpa"][1]
+    total = 0.0
+    for name, r in default_capacity["joints"].items():
+        j = 5 + LEG_JOINTS.index(name)  # the left leg's joint (JOINTS: right leg first)
+        mid = np.radians([0.5 * sum(WALKING_RANGE_DEG[name])])
+        p_plus, p_minus = r["walking_pressures_kpa"]
+        assert low < p_plus <= m.max_pressure_kpa and low < p_minus <= m.max_pressure_kpa
+        assert _static_torque_nm(drive, j, mid, p_plus, low)[0] == pytest.approx(r["walking_demand_nm"], rel=1e-3)
+        assert -_static_torque_nm(drive, j, mid, low, p_minus)[0] == pytest.approx(r["walking_demand_nm"], rel=1e-3)
+        angles = np.zeros((1, 10))
+        angles[0, j] = mid[0]
+        c1, c2 = drive.coupling.static_contraction_pct(angles, np.full((1, 10, 2), low))[0, j]
+        v1, v2 = (muscle_volume_l(c, m.nominal_length_m, MUSCLE_INNER_DIAMETER_M[m.size]) for c in (c1, c2))
+        litres = (v1 * (p_plus - low) + v2 * (p_minus - low)) / 101.325 * 273.15 / 293.15
+        assert r["air_per_cycle_nl"] == pytest.approx(2 * r["muscles_per_direction"] * litres, abs=1e-3)
+        total += r["air_per_cycle_nl"]
+    assert default_capacity["air_per_cycle_nl"] == pytest.approx(total, abs=1e-3)
+    assert 10 < total < 50  # tens of normal litres per cycle (the pilot walker measured ~25 per stride)
+
+
 def test_thesis_model_is_too_weak_and_has_no_stiffness():
     cap = analyse(thesis_muscle(), BodyConfig())
     assert cap["coupling"] == "thesis" and cap["band_kpa"] == [283.0, 141.0]
@@ -117,6 +147,7 @@ def test_pamrun_capacity_writes_table_json_and_figure(tmp_path):
     assert data["verdict"]["walking_margin_ok"] and data["muscle"]["size"] == "DMSP-40"
     assert (out / "capacity.png").stat().st_size > 20_000
     assert "ankle_pitch" in proc.stdout and "covered with margin >= 1.5: yes" in " ".join(proc.stdout.split())
+    assert f"about {data['air_per_cycle_nl']:.1f} normal litres per gait cycle" in " ".join(proc.stdout.split())
     proc = run_pamrun("capacity", "muscle=thesis", f"hydra.run.dir={tmp_path / 'thesis'}")
     assert proc.returncode == 0, proc.stderr
     assert "burst" in proc.stdout and "no (weakest" in " ".join(proc.stdout.split())

@@ -155,3 +155,34 @@ def test_slip_term_is_the_stance_feet_speed():
     assert info["reward_terms"]["kslip"] == pytest.approx(2.0 * -slips[-1])
     assert PamWalkerEnv().reward_weights[REWARD_KEYS.index("kslip")] == 0.0
     env.close()
+
+
+def test_air_term_and_info_meter_the_supply_air():
+    """info["air_nl"] per step sums to pamrun.muscle.air_nl over the same states (the gait
+    metric's rule), kair's feature is minus it, and standing on constant pressures draws
+    little."""
+    from pamrun.body import LEG_JOINTS, SIDES
+    from pamrun.muscle import MUSCLE_INNER_DIAMETER_M, air_nl
+
+    env = PamWalkerEnv(reward={"kair": 0.5})
+    _, info = env.reset(seed=0)
+    assert info["air_nl"] == 0.0
+    states = [(env.drive.pressure_kpa.ravel().copy(), env.drive.contraction_pct.ravel().copy())]
+    rng = np.random.default_rng(0)
+    total = 0.0
+    for _ in range(30):
+        _, _, fell, _, info = env.step(rng.uniform(-0.5, 0.5, 10))
+        f = dict(zip(REWARD_KEYS, info["reward_unweighted"]))
+        assert f["kair"] == -info["air_nl"] <= 0 and info["reward_terms"]["kair"] == pytest.approx(0.5 * f["kair"])
+        total += info["air_nl"]
+        states.append((env.drive.pressure_kpa.ravel().copy(), env.drive.contraction_pct.ravel().copy()))
+        assert not fell
+    m = env.muscle_cfg
+    counts = [getattr(m.count, j) for _ in SIDES for j in LEG_JOINTS]
+    p, c = (np.array(x) for x in zip(*states))
+    expected = air_nl(p, c, m.nominal_length_m, MUSCLE_INNER_DIAMETER_M[m.size], counts)
+    assert total > 1.0 and total == pytest.approx(expected, rel=1e-9)
+    for _ in range(40):  # zero action: the pressures settle; only the sway's contractions draw a little
+        _, _, _, _, info = env.step(np.zeros(10))
+    assert info["air_nl"] < 0.05 * total / 30  # under 5 % of a random command's mean per step
+    env.close()

@@ -16,7 +16,7 @@ class RewardConfig:
 
     r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf
           - kda sum((a_prev - a_prev2)^2) - kfall [fell] - kstop n_stop / n
-          + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip   (the last five: 0 in the thesis)
+          + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip - kair air   (the last six: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -30,9 +30,10 @@ class RewardConfig:
     kstop: float = 0.0  # weight of the share of hip and ankle joints, and swinging legs' knees, within 2 deg of a stop
     kspeed: float = 0.0  # weight of the speed tracking exp(-((Vx - env.target_speed_m_s) / env.speed_sigma_m_s)^2)
     kslip: float = 0.0  # weight of the feet's slip: summed horizontal speed [m/s] of the feet in stance
+    kair: float = 0.0  # weight of the supply air the muscles draw in a control step [normal litres]
 
     def __post_init__(self) -> None:
-        for name in ("kvx", "ky", "kz", "kv", "kt", "kda", "kfall", "kstop", "kspeed", "kslip"):
+        for name in ("kvx", "ky", "kz", "kv", "kt", "kda", "kfall", "kstop", "kspeed", "kslip", "kair"):
             _require(math.isfinite(getattr(self, name)), name, "must be finite")
 
 
