@@ -84,9 +84,14 @@ def neutral_angles_rad(muscle: MuscleConfig) -> np.ndarray:
     return np.deg2rad([getattr(muscle.neutral_deg, j) * mirror_sign(side, j) for side in SIDES for j in LEG_JOINTS])
 
 
+def muscle_counts(muscle: MuscleConfig) -> np.ndarray:
+    """(10,) muscles in parallel per direction, JOINTS order."""
+    return np.array([getattr(muscle.count, name) for name in _leg_joint_of_each_hinge()], float)
+
+
 def force_scales(muscle: MuscleConfig) -> np.ndarray:
     """(10,) muscles per direction x the size's force ratio, JOINTS order."""
-    return np.array([getattr(muscle.count, name) for name in _leg_joint_of_each_hinge()], float) * muscle.force_scale
+    return muscle_counts(muscle) * muscle.force_scale
 
 
 def n_actions(muscle: MuscleConfig) -> int:
@@ -165,7 +170,7 @@ class ThesisCoupling(Coupling):
     def torques_nm(self, voltage_v: np.ndarray, angle_rad: np.ndarray, velocity_rad_s: np.ndarray,
                    dt_s: float) -> np.ndarray:
         pairs = self.pairs
-        changed = pairs.regulator.step(voltage_v, dt_s)
+        changed = pairs.regulator.step(voltage_v, dt_s, self.contraction_pct)
         pairs.dynamics.step(pairs.pressure_kpa, dt_s, changed)
         self.contraction_pct = pairs.dynamics.contraction_pct()
         return pairs.torque_nm(self.radius_m)
@@ -186,11 +191,14 @@ class KinematicCoupling(Coupling):
     c1,2 = c_rest +- 100 r (theta - theta_n) / L0 [%] (c_rest: ``kinematic_rest_contraction_pct``,
     theta_n: ``neutral_deg``), so co-contraction stiffens the joint; both dampers D = tau S
     (thesis §8.3) act on the joint velocity: T = k (F1 - F2) r - k (D1 + D2) r^2 theta' [N m].
-    Pressure follows the command through the regulator (and its lag).
+    Pressure follows the command through the regulator (and its lag). With hysteresis
+    (``muscle.spring.hysteresis``, pamrun/hysteresis.py) each F is F - H, H moved along by each
+    muscle's contraction, and the sticking elements stiffen the pair.
     """
 
     def __init__(self, muscle: MuscleConfig, pairs: AntagonisticPairs, radius_m: np.ndarray):
         super().__init__(muscle, pairs, radius_m)
+        self.hysteresis = pairs.dynamics.hysteresis  # None for none; reset with the pairs
         self.rest_pct = muscle.kinematic_rest_contraction_pct
         self.pct_per_rad = 100.0 * radius_m / muscle.nominal_length_m  # 100 r / L0 [%/rad]
         self.neutral = neutral_angles_rad(muscle)  # theta_n [rad]
@@ -206,23 +214,39 @@ class KinematicCoupling(Coupling):
         """Step the regulator by dt_s [s]; the pairs' torque k (F1 - F2) r [N m] at ``angle_rad``
         and its stiffness -dT/dtheta [N m/rad] (a slack muscle adds none)."""
         pairs = self.pairs
-        changed = pairs.regulator.step(voltage_v, dt_s)
+        changed = pairs.regulator.step(voltage_v, dt_s, self.contraction_pct)  # the last step's (valve: volume)
         if changed or self.coef is None:
             pressure = pairs.pressure_kpa
             self.coef = pairs.law.at_pressure(pressure)
             # Both sides' dampers act on the joint: k (D1 + D2) r^2 [N m s/rad], D = tau S.
             d_n_s_per_m = self.cfg.tau_s * pairs.dynamics.spring(pressure).sum(axis=1) * pairs.dynamics.length_scale
             self.damping = d_n_s_per_m * self.lever * self.radius_m
+            if self.hysteresis is not None:
+                self.hysteresis.at_pressure(pressure)
         shift = self.pct_per_rad * (angle_rad - self.neutral)
-        c = self.contraction_pct
-        c[:, 0] = self.rest_pct + shift
-        c[:, 1] = self.rest_pct - shift
-        force, slope = pairs.law.force_and_slope(self.coef, c)
+        if self.hysteresis is None:
+            c = self.contraction_pct
+            c[:, 0] = self.rest_pct + shift
+            c[:, 1] = self.rest_pct - shift
+            force, slope = pairs.law.force_and_slope(self.coef, c)
+        else:
+            force, slope = self._net_force_and_slope(shift)
         slope = np.where(force > 0.0, slope, 0.0)  # dF/dc [N/%], 0 where slack
         force = np.maximum(force, 0.0)
         torque = (force[:, 0] - force[:, 1]) * self.lever
         stiffness = -(slope[:, 0] + slope[:, 1]) * self.pct_per_rad * self.lever
         return torque, stiffness
+
+    def _net_force_and_slope(self, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Contractions at the pulley ``shift`` [%]; the hysteresis elements moved by each muscle's
+        change; F - H [N] and dF/dc - dH/dc [N/%], signed (n, 2)."""
+        c, hysteresis = self.contraction_pct, self.hysteresis
+        previous = c.copy()
+        c[:, 0] = self.rest_pct + shift
+        c[:, 1] = self.rest_pct - shift
+        hysteresis.move(c - previous)
+        force, slope = self.pairs.law.force_and_slope(self.coef, c)
+        return force - hysteresis.force_n(), slope - hysteresis.stiffness_n_per_pct()
 
     def torques_nm(self, voltage_v: np.ndarray, angle_rad: np.ndarray, velocity_rad_s: np.ndarray,
                    dt_s: float) -> np.ndarray:
@@ -295,7 +319,7 @@ class MuscleDrive:
         self.radius_m = pulley_radii_m(muscle, body)
         self.force_scale = force_scales(muscle)
         self.n_actions = n_actions(muscle)
-        self.pairs = AntagonisticPairs(muscle, len(self.radius_m), self.force_scale)
+        self.pairs = AntagonisticPairs(muscle, len(self.radius_m), self.force_scale, muscle_counts(muscle))
         self.voltage_v = self.voltages_v(np.zeros(self.n_actions))
         self.coupling = make_coupling(muscle, self.pairs, self.radius_m)
 

@@ -30,6 +30,19 @@ What the thesis leaves open, and what we chose:
   = (0.005 s, 1) from ``BodyConfig``, which holds every limit within a degree or two.
 * Joint damping 1 N m s/rad, stiffness 0 (Table 8.2); one torque motor per hinge; a
   touch sensor under each sole gives the normal ground force (``FOOT_SENSORS``).
+* **A passive toe** (``body.toe``, thesis §13 "future work"; off by default, and then the
+  model is exactly the one-piece foot above). The foot's front ``toe_length_ratio`` becomes
+  a toe, hinged about the lateral axis at the metatarsal line, level with the contact
+  spheres' centres, held flat by MuJoCo's joint spring and damper
+  (``toe_stiffness_nm_per_rad``, ``toe_damping_nms_per_rad``) within ``toe_range_deg``: no
+  muscle, no actuator, no action, so the action and observation spaces do not change. It
+  takes ``toe_mass_ratio`` of the foot's mass; the rear foot keeps the rest, placed so the two
+  keep the foot's centre of mass, and the foot's radii of gyration. The foot's ``front``
+  contact spheres move to the toe's tip (their names unchanged) and the rear foot gets two
+  spheres at the metatarsal line, ``{side}_contact_ball_{edge}``: the foot stands on heel and
+  ball, as a foot does, and rolls over the toe as the heel rises. A second touch sensor per
+  foot (``TOE_SENSORS``) reads the toe; the env adds it to its foot's. The toe hinges
+  (``TOE_JOINTS``) are not ``JOINTS``: read joints by name (:func:`joint_addresses`).
 
 Axes: x forward, y left, z up; hinge angles follow the right-hand rule, so knee flexion
 and hip extension are positive pitch, and the left hip abducts with positive roll.
@@ -47,12 +60,18 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import mujoco  # noqa: E402
 
 from pamrun.config import LEG_JOINTS, BodyConfig  # noqa: E402  (LEG_JOINTS: one leg's hinges, their one home)
+from pamrun.config.robot import (FOOT_HEIGHT_RATIO, FOOT_LENGTH_RATIO, FOOT_MASS_RATIO,  # noqa: E402
+                                 FOOT_WIDTH_RATIO)
 
 SIDES = ("right", "left")
 JOINTS = tuple(f"{side}_{joint}" for side in SIDES for joint in LEG_JOINTS)  # every hinge, right leg first
 TORSO = "torso"
 FEET = ("right_foot", "left_foot")
 FOOT_SENSORS = ("right_foot_force", "left_foot_force")
+# body.toe: the passive toe hinges (not JOINTS: no muscle, no action) and the touch sensors under
+# the toes; a foot's normal ground force is its FOOT_SENSORS value plus its TOE_SENSORS value.
+TOE_JOINTS = ("right_toe", "left_toe")  # each hinged to its body of the same name
+TOE_SENSORS = ("right_toe_force", "left_toe_force")
 CAMERA = "track"
 GRAVITY = 9.81
 IMPEDANCE = 0.95  # constant solimp d of contacts and limits (MuJoCo's default range is 0.9-0.95)
@@ -69,13 +88,13 @@ def anthropometry(cfg: BodyConfig) -> dict[str, dict[str, float]]:
     joint; the foot's ``offset_m`` is how far the ankle sits behind the foot's centre.
     """
     h, m = cfg.height_m, cfg.mass_kg
-    foot_x, foot_y, foot_z = 0.152 * h, 0.055 * h, 0.039 * h
+    foot_x, foot_y, foot_z = FOOT_LENGTH_RATIO * h, FOOT_WIDTH_RATIO * h, FOOT_HEIGHT_RATIO * h
     foot_offset = 0.0569 * h / 1.80  # -0.0569 m at H = 1.80 m, scaled with height
     foot_ro = math.hypot(foot_offset, foot_z / 2)
     lower_len = 0.285 * h - foot_z
     upper_len = 0.530 * h - lower_len - foot_z
-    foot_mass, lower_mass, upper_mass = 0.0145 * m, 0.0465 * m, 0.1 * m
-    return {
+    foot_mass, lower_mass, upper_mass = FOOT_MASS_RATIO * m, 0.0465 * m, 0.1 * m
+    seg = {
         "foot": {
             "x_m": foot_x, "y_m": foot_y, "z_m": foot_z, "mass_kg": foot_mass,
             "com_m": foot_z / 2, "offset_m": foot_offset,
@@ -96,6 +115,28 @@ def anthropometry(cfg: BodyConfig) -> dict[str, dict[str, float]]:
             "mass_kg": cfg.pelvis_mass_ratio * m, "com_m": 0.0,
             "hip_width_m": cfg.hip_width_ratio * h,
         },
+    }
+    if cfg.toe:
+        seg["toe"] = _toe_segment(cfg, seg["foot"])
+    return seg
+
+
+def _toe_segment(cfg: BodyConfig, foot: dict[str, float]) -> dict[str, float]:
+    """``body.toe``: the toe box (BodyConfig.toe_box_m), its mass, CoM (its centre), radius of
+    gyration and inertia about its centre across it, and where its hinge sits in the foot's
+    frame (``hinge_x_m`` ahead of the ankle, at the metatarsal line; ``hinge_z_m``, at the height
+    of the contact spheres' centres) with the toe's inertia about it (``hinge_inertia_kgm2``)."""
+    length, width, height = cfg.toe_box_m()
+    mass = cfg.toe_mass_kg()
+    r_sphere = SPHERE_RADIUS_RATIO * cfg.height_m
+    inertia = mass * (length**2 + height**2) / 12
+    com_above_hinge = height / 2 - r_sphere  # the toe's bottom is the sole, r below the hinge
+    return {
+        "x_m": length, "y_m": width, "z_m": height, "mass_kg": mass, "com_m": 0.0,
+        "radius_gyration_m": math.sqrt(inertia / mass), "inertia_kgm2": inertia,
+        "hinge_x_m": foot["offset_m"] + foot["x_m"] / 2 - length, "hinge_z_m": -foot["z_m"] + r_sphere,
+        "com_above_hinge_m": com_above_hinge,
+        "hinge_inertia_kgm2": inertia + mass * ((length / 2) ** 2 + com_above_hinge**2),
     }
 
 
@@ -166,11 +207,10 @@ def _add_hinge(body, name: str, axis: list[float], limits_deg: tuple[float, floa
 
 def _add_leg(torso, side: str, sign: float, cfg: BodyConfig) -> None:
     """One leg under the torso (``sign``: -1 right, +1 left): thigh (hip pitch and roll), shin
-    (knee), foot (ankle pitch and roll), their visual boxes, the sole's touch site and the four
-    contact spheres at the sole's corners (§8.1), sizes from :func:`anthropometry`."""
+    (knee), foot (ankle pitch and roll, :func:`_add_foot`), their visual boxes, sizes from
+    :func:`anthropometry`."""
     seg = anthropometry(cfg)
-    foot, lower, upper, pelvis = seg["foot"], seg["lower_leg"], seg["upper_leg"], seg["pelvis"]
-    r_sphere = SPHERE_RADIUS_RATIO * cfg.height_m
+    lower, upper, pelvis = seg["lower_leg"], seg["upper_leg"], seg["pelvis"]
     lim = joint_limits_deg(cfg, side)
     thigh = torso.add_body(name=f"{side}_thigh", pos=[0, sign * pelvis["hip_width_m"] / 2, -pelvis["z_m"] / 2],
                            mass=upper["mass_kg"], ipos=[0, 0, -upper["z_m"] / 2 + upper["com_m"]],
@@ -187,31 +227,83 @@ def _add_leg(torso, side: str, sign: float, cfg: BodyConfig) -> None:
     shin.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, pos=[0, 0, -lower["z_m"] / 2], mass=0,
                   size=[lower["x_m"] / 2, lower["y_m"] / 2, lower["z_m"] / 2], rgba=[0.85, 0.6, 0.4, 1],
                   **_NO_COLLIDE)
+    _add_foot(shin, side, cfg, seg, lim)
+
+
+def _add_sphere(body, name: str, pos: list[float], r_sphere: float, cfg: BodyConfig) -> None:
+    """A contact sphere: the only geoms that collide (with the floor), §8.1."""
+    body.add_geom(
+        name=name, type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[r_sphere, 0, 0], mass=0, pos=pos,
+        contype=2, conaffinity=1, condim=3, rgba=[0.9, 0.2, 0.2, 1],
+        friction=[cfg.friction_static, 0.005, 0.0001],
+        solref=list(contact_solref(cfg)), solimp=[IMPEDANCE, IMPEDANCE, 0.001, 0.5, 2.0],
+    )
+
+
+def _add_foot(shin, side: str, cfg: BodyConfig, seg: dict, lim: dict) -> None:
+    """The foot under the shin: ankle pitch and roll, its visual box, the sole's touch site and
+    four contact spheres at the sole's corners (§8.1). With ``body.toe`` the foot ends at the
+    metatarsal line: its mass less the toe's (the two together keep the foot's centre of mass),
+    its front spheres there (the ball of the foot, ``{side}_contact_ball_*``), and the toe
+    (:func:`_add_toe`) carries the ``front`` ones at the tip."""
+    foot, lower = seg["foot"], seg["lower_leg"]
+    r_sphere = SPHERE_RADIUS_RATIO * cfg.height_m
     foot_centre = [foot["offset_m"], 0, -foot["z_m"] / 2]
-    foot_body = shin.add_body(name=f"{side}_foot", pos=[0, 0, -lower["z_m"]], mass=foot["mass_kg"],
-                              ipos=foot_centre,
-                              inertia=[foot["inertia_kgm2"], foot["inertia_kgm2"],
-                                       foot["mass_kg"] * (foot["x_m"] ** 2 + foot["y_m"] ** 2) / 12])
+    inertia = [foot["inertia_kgm2"], foot["inertia_kgm2"], foot["mass_kg"] * (foot["x_m"] ** 2 + foot["y_m"] ** 2) / 12]
+    mass, ipos, length, centre = foot["mass_kg"], foot_centre, foot["x_m"], foot_centre
+    if cfg.toe:  # the rear foot: heel to the metatarsal line
+        toe = seg["toe"]
+        mass = foot["mass_kg"] - toe["mass_kg"]
+        toe_com = np.array([toe["hinge_x_m"] + toe["x_m"] / 2, 0.0, toe["hinge_z_m"] + toe["com_above_hinge_m"]])
+        ipos = ((foot["mass_kg"] * np.array(foot_centre) - toe["mass_kg"] * toe_com) / mass).tolist()
+        inertia = [i * mass / foot["mass_kg"] for i in inertia]  # the foot's radii of gyration
+        length = foot["x_m"] - toe["x_m"]
+        centre = [toe["hinge_x_m"] - length / 2, 0, -foot["z_m"] / 2]
+    foot_body = shin.add_body(name=f"{side}_foot", pos=[0, 0, -lower["z_m"]], mass=mass, ipos=ipos, inertia=inertia)
     _add_hinge(foot_body, f"{side}_ankle_pitch", [0, 1, 0], lim["ankle_pitch"], cfg)
     _add_hinge(foot_body, f"{side}_ankle_roll", [1, 0, 0], lim["ankle_roll"], cfg)
-    foot_body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, pos=foot_centre, mass=0,
-                       size=[foot["x_m"] / 2, foot["y_m"] / 2, foot["z_m"] / 2], rgba=[0.3, 0.3, 0.3, 1],
+    foot_body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, pos=centre, mass=0,
+                       size=[length / 2, foot["y_m"] / 2, foot["z_m"] / 2], rgba=[0.3, 0.3, 0.3, 1],
                        **_NO_COLLIDE)
-    # Touch sensor: sum of normal contact forces [N] in a box around the sole.
-    foot_body.add_site(name=f"{side}_sole", type=mujoco.mjtGeom.mjGEOM_BOX, pos=foot_centre,
-                       size=[foot["x_m"] / 2 + r_sphere, foot["y_m"] / 2 + r_sphere, foot["z_m"] / 2 + 0.02],
+    # Touch sensor: sum of normal contact forces [N] in a box around the sole (this body's contacts only).
+    foot_body.add_site(name=f"{side}_sole", type=mujoco.mjtGeom.mjGEOM_BOX, pos=centre,
+                       size=[length / 2 + r_sphere, foot["y_m"] / 2 + r_sphere, foot["z_m"] / 2 + 0.02],
                        rgba=[0, 0, 0, 0])
     for cx in (-1, 1):
         for cy in (-1, 1):
-            foot_body.add_geom(
-                name=f"{side}_contact_{'front' if cx > 0 else 'back'}_{'left' if cy > 0 else 'right'}",
-                type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[r_sphere, 0, 0], mass=0,
-                pos=[foot["offset_m"] + cx * (foot["x_m"] / 2 - r_sphere), cy * (foot["y_m"] / 2 - r_sphere),
-                     -foot["z_m"] + r_sphere],
-                contype=2, conaffinity=1, condim=3, rgba=[0.9, 0.2, 0.2, 1],
-                friction=[cfg.friction_static, 0.005, 0.0001],
-                solref=list(contact_solref(cfg)), solimp=[IMPEDANCE, IMPEDANCE, 0.001, 0.5, 2.0],
-            )
+            edge = "left" if cy > 0 else "right"
+            if cfg.toe and cx > 0:
+                name, x = f"{side}_contact_ball_{edge}", seg["toe"]["hinge_x_m"] - r_sphere
+            else:
+                name, x = (f"{side}_contact_{'front' if cx > 0 else 'back'}_{edge}",
+                           foot["offset_m"] + cx * (foot["x_m"] / 2 - r_sphere))
+            _add_sphere(foot_body, name, [x, cy * (foot["y_m"] / 2 - r_sphere), -foot["z_m"] + r_sphere], r_sphere, cfg)
+    if cfg.toe:
+        _add_toe(foot_body, side, cfg, seg["toe"], r_sphere)
+
+
+def _add_toe(foot_body, side: str, cfg: BodyConfig, toe: dict[str, float], r_sphere: float) -> None:
+    """``body.toe``: the toe, hinged to the foot about the lateral axis at the metatarsal line,
+    level with the contact spheres' centres. A passive joint: MuJoCo's joint spring
+    (``toe_stiffness_nm_per_rad``, 0 = flat) and damping, within ``toe_range_deg``; no actuator.
+    Its touch site (``{side}_toe_sole``, read by ``{side}_toe_force``) and the foot's front
+    contact spheres (``{side}_contact_front_*``), at the toe's tip."""
+    length, width, height = toe["x_m"], toe["y_m"], toe["z_m"]
+    centre = [length / 2, 0, toe["com_above_hinge_m"]]
+    body = foot_body.add_body(name=f"{side}_toe", pos=[toe["hinge_x_m"], 0, toe["hinge_z_m"]], mass=toe["mass_kg"],
+                              ipos=centre, inertia=_box_inertia(toe["mass_kg"], length, width, height))
+    lo, hi = cfg.toe_range_deg
+    body.add_joint(name=f"{side}_toe", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 1, 0],
+                   range=[math.radians(lo), math.radians(hi)], limited=mujoco.mjtLimited.mjLIMITED_TRUE,
+                   damping=cfg.toe_damping_nms_per_rad, stiffness=cfg.toe_stiffness_nm_per_rad,
+                   solref_limit=[cfg.joint_limit_timeconst_s, cfg.joint_limit_dampratio])
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, pos=centre, mass=0, size=[length / 2, width / 2, height / 2],
+                  rgba=[0.45, 0.45, 0.45, 1], **_NO_COLLIDE)
+    body.add_site(name=f"{side}_toe_sole", type=mujoco.mjtGeom.mjGEOM_BOX, pos=centre,
+                  size=[length / 2 + r_sphere, width / 2 + r_sphere, height / 2 + 0.02], rgba=[0, 0, 0, 0])
+    for cy in (-1, 1):
+        _add_sphere(body, f"{side}_contact_front_{'left' if cy > 0 else 'right'}",
+                    [length - r_sphere, cy * (width / 2 - r_sphere), 0.0], r_sphere, cfg)
 
 
 def build_spec(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = False) -> mujoco.MjSpec:
@@ -264,13 +356,17 @@ def build_spec(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = F
     for side in SIDES:
         spec.add_sensor(name=f"{side}_foot_force", type=mujoco.mjtSensor.mjSENS_TOUCH,
                         objtype=mujoco.mjtObj.mjOBJ_SITE, objname=f"{side}_sole")
+    for side in SIDES if cfg.toe else ():  # after FOOT_SENSORS: their addresses stay 0 and 1
+        spec.add_sensor(name=f"{side}_toe_force", type=mujoco.mjtSensor.mjSENS_TOUCH,
+                        objtype=mujoco.mjtObj.mjOBJ_SITE, objname=f"{side}_toe_sole")
     for joint in JOINTS:
         # Torque = ctrl + biasprm[1] q + biasprm[2] q' (affine bias: the muscle drive sets a
         # linearised pair there, see pamrun.actuation.MuscleDrive.apply; 0 = a plain motor).
         spec.add_actuator(name=joint, target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT, gear=[1, 0, 0, 0, 0, 0],
                           ctrllimited=mujoco.mjtLimited.mjLIMITED_FALSE, biastype=mujoco.mjtBias.mjBIAS_AFFINE)
     if not fixed_torso:
-        spec.add_key(name="stand", qpos=[0, 0, z_torso, 1, 0, 0, 0] + [0.0] * len(JOINTS))
+        hinges = len(JOINTS) + (len(TOE_JOINTS) if cfg.toe else 0)
+        spec.add_key(name="stand", qpos=[0, 0, z_torso, 1, 0, 0, 0] + [0.0] * hinges)
     return spec
 
 
@@ -286,6 +382,7 @@ def match_contact_overlap(model: mujoco.MjModel, cfg: BodyConfig) -> float:
     At rest each contact row satisfies R f = K I r. With the weight W shared evenly over
     the n pyramid rows (f = W / n), the mean penetration is mean(R / (K I)) W / n; K is
     proportional to the solref stiffness, so one scale factor gives the designed overlap.
+    With ``body.toe`` the toes' rows are left out: held by a soft spring, a toe bears little.
     Returns that factor.
     """
     key = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "stand")
@@ -296,6 +393,10 @@ def match_contact_overlap(model: mujoco.MjModel, cfg: BodyConfig) -> float:
     data.qpos[2] -= cfg.contact_overlap_m  # evaluate R, K, I at the designed penetration
     mujoco.mj_forward(model, data)
     rows = data.efc_type[: data.nefc] == mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL
+    toes = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name) for name in TOE_JOINTS]
+    if min(toes) >= 0:  # body.toe: its soft spring bears little; heel and ball share the weight
+        geoms = data.contact.geom[data.efc_id[: data.nefc]]
+        rows &= ~np.isin(model.geom_bodyid[geoms], toes).any(axis=1)
     r_reg, kbip = data.efc_R[: data.nefc][rows], data.efc_KBIP[: data.nefc][rows]
     weight = model.body_subtreemass[0] * -model.opt.gravity[2]
     predicted = np.mean(r_reg / (kbip[:, 0] * kbip[:, 2])) * weight / rows.sum()

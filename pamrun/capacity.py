@@ -30,6 +30,8 @@ For each joint of the left leg (the right one mirrors it) and the configured mus
   reach): it is filled once and exhausts once. Air = the growth of P V
   (:class:`pamrun.muscle.AirMeter`), both legs, every muscle counted. A gait that co-contracts, or moves through larger ranges, uses
   more; the measured walker's air per metre is in ``pamrun eval``'s gait table.
+* **Toe** (``body.toe``): the toe moves with the foot, so it is below every joint in the gravity
+  loads; its passive spring is set against push-off and tip-toe (:func:`_toe_capacity`).
 """
 
 from __future__ import annotations
@@ -57,8 +59,9 @@ LEAN_DEG = 5.0  # a lean to hold while standing (THESIS.md §8: 2, 5 or 10 deg)
 REQUIRED_MARGIN = 1.5  # capacity over walking demand a robot that should learn to walk needs
 STIFFNESS_LEVELS_KPA = (100.0, 200.0, 300.0, 400.0, 600.0, 800.0)
 # Bodies that move with each joint group's distal side, i.e. not carried by it (left leg; both legs share).
-# A group is the first word of its joints' names: hip (pitch, roll), knee, ankle (pitch, roll).
-_BELOW = {"ankle": ("foot",), "knee": ("shin", "foot"), "hip": ("thigh", "shin", "foot")}
+# A group is the first word of its joints' names: hip (pitch, roll), knee, ankle (pitch, roll). The toe
+# (body.toe) is a part of the foot; without it the name matches no body.
+_BELOW = {"ankle": ("foot", "toe"), "knee": ("shin", "foot", "toe"), "hip": ("thigh", "shin", "foot", "toe")}
 
 
 def _gravity_loads(body: BodyConfig) -> dict[str, dict[str, float]]:
@@ -209,4 +212,28 @@ def analyse(muscle: MuscleConfig, body: BodyConfig, n_angles: int = 91) -> dict[
         "air_per_cycle_nl": round(sum(v["air_per_cycle_nl"] for v in joints.values()), 3),
         "verdict": {"walking_margin_ok": walks, "ankle_stiffness_ok": ankle_stiff,
                     "min_walking_margin": min(v["walking_margin"] for v in joints.values())},
+        **({"toe": _toe_capacity(body, mass)} if body.toe else {}),
     }
+
+
+def _toe_capacity(body: BodyConfig, mass_kg: float) -> dict[str, Any]:
+    """``body.toe``: its passive spring against what the forefoot asks of it, per foot.
+
+    * push-off: the human's peak MTP moment in walking per kg (MTP_PEAK_MOMENT_NM_PER_KG)
+      times the robot's mass, and the dorsiflexion the spring needs to give it;
+    * tip-toe: standing on the toes alone, half the robot's weight at the toe's contact
+      spheres (their centres' distance from the hinge), and the dorsiflexion that needs. In
+      stance the foot stands on its heel and ball: the toe bears only what its spring gives.
+    Past ``toe_range_deg``'s dorsiflexion stop the stop (a joint limit) holds the rest."""
+    from pamrun.body import GRAVITY, SPHERE_RADIUS_RATIO
+    from pamrun.config.robot import MTP_PEAK_MOMENT_NM_PER_KG
+
+    k = body.toe_stiffness_nm_per_rad
+    stop_deg = -body.toe_range_deg[0]
+    arm_m = body.toe_box_m()[0] - SPHERE_RADIUS_RATIO * body.height_m
+    out: dict[str, Any] = {"stiffness_nm_per_rad": k, "dorsiflexion_stop_deg": stop_deg, "arm_m": round(arm_m, 4),
+                           "moment_at_stop_nm": round(k * math.radians(stop_deg), 3)}
+    for name, demand in (("push_off", MTP_PEAK_MOMENT_NM_PER_KG * mass_kg), ("tip_toe", mass_kg * GRAVITY / 2 * arm_m)):
+        angle = math.degrees(demand / k)
+        out[name] = {"demand_nm": round(demand, 3), "angle_deg": round(angle, 2), "within_range": angle <= stop_deg}
+    return out

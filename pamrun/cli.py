@@ -31,6 +31,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "muscle step": ("pamrun.lab", "muscle_step", "step responses of one antagonistic pair vs thesis §10.1"),
     "muscle calibrate": ("pamrun.lab", "muscle_calibrate", "fit the spring table S(P) to the §10.1 step responses"),
     "muscle curves": ("pamrun.lab", "muscle_curves", "both force laws vs measured, and the surface (Figs 8.9, 8.10)"),
+    "muscle valve": ("pamrun.lab", "muscle_valve", "regulator step 0 -> 600 kPa: model=lag vs model=flow, rise times"),
+    "muscle hysteresis": ("pamrun.lab", "muscle_hysteresis", "a muscle cycled at one pressure: the loop, its area"),
     "body": ("pamrun.lab", "body", "generate the robot: robot.xml, body.json, robot.png (thesis §8.1-8.2)"),
     "openloop": ("pamrun.lab", "openloop", "pressure steps on each joint, torso fixed (thesis §10.2)"),
     "capacity": ("pamrun.lab", "capacity", "muscle torque and stiffness vs standing and walking demand, per joint"),
@@ -51,6 +53,7 @@ ROBOT = ("muscle", "body")
 TASK = ("seed", *ROBOT, "reward", "env")
 HELP_SECTIONS: dict[str, tuple[str, ...]] = {
     "muscle step": ("muscle", "pair"), "muscle calibrate": ("muscle", "pair"), "muscle curves": ("muscle",),
+    "muscle valve": ("muscle",), "muscle hysteresis": ("muscle",),
     "body": ("body",), "openloop": (*ROBOT, "env"), "capacity": ROBOT,
     "train": (*TASK, "algo", "train", "eval", "resume"), "eval": ("ckpt", "eval", *TASK),
     "export": ("ckpt", "format"),

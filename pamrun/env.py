@@ -232,6 +232,8 @@ class PamWalkerEnv(gym.Env):
         self._foot_sensor_adr = np.array(
             [m.sensor_adr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, s)] for s in body_mod.FOOT_SENSORS]
         )
+        toes = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, s) for s in body_mod.TOE_SENSORS]
+        self._toe_sensor_adr = m.sensor_adr[toes] if min(toes) >= 0 else None  # body.toe: added to the feet
         self.mass_kg = float(m.body_subtreemass[0])  # the whole robot
         self.weight_n = float(m.body_subtreemass[0] * -m.opt.gravity[2])
 
@@ -359,12 +361,16 @@ class PamWalkerEnv(gym.Env):
         return q, v, (*q[0:3], *quat_to_euler(q[3:7]), *v[0:6])
 
     def foot_forces_n(self) -> np.ndarray:
-        """Normal ground force [N] under the right and left foot (MuJoCo touch sensors).
+        """Normal ground force [N] under the right and left foot (MuJoCo touch sensors; with
+        ``body.toe`` each foot's sum of its sole's and its toe's).
 
         Sensors are evaluated inside ``mj_step`` before integration, so the value lags the
         state by one physics step (1 ms).
         """
-        return self.data.sensordata[self._foot_sensor_adr]  # fancy indexing: a copy
+        forces = self.data.sensordata[self._foot_sensor_adr]  # fancy indexing: a copy
+        if self._toe_sensor_adr is not None:  # body.toe: the toe's touch sensor, under the same foot
+            forces += self.data.sensordata[self._toe_sensor_adr]
+        return forces
 
     def _observation(self, foot_force_n: np.ndarray, state: _State | None = None) -> np.ndarray:
         q, v, (_, y, z, roll, pitch, yaw, *velocity) = self._state() if state is None else state

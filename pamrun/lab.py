@@ -15,7 +15,7 @@ from omegaconf import DictConfig
 from rich.table import Table
 
 from pamrun import plots
-from pamrun.config import SPRING_FILE, Config, to_object
+from pamrun.config import SPRING_FILE, Config, MuscleConfig, to_object
 from pamrun.force_laws import FORCE_LAWS, MARTENS_BOBLAN_DMSP20_300
 from pamrun.muscle import calibrate_spring, simulate_step
 from pamrun.runio import console as make_console, run_dir
@@ -192,6 +192,123 @@ def muscle_curves(dcfg: DictConfig) -> None:
     console.print(f"Wrote force_curves.json, force_curves.png, force_surface.png (surface: {cfg.muscle.force_law})")
 
 
+# --------------------------------------------------------------------------- valve
+
+
+def _crossing_s(time_s: np.ndarray, pressure_kpa: np.ndarray, level_kpa: float) -> float | None:
+    """First time [s] the rising pressure reaches ``level_kpa``, interpolated linearly (None: never)."""
+    above = np.flatnonzero(pressure_kpa >= level_kpa)
+    if not len(above):
+        return None
+    k = int(above[0])
+    if k == 0:
+        return float(time_s[0])
+    t0, t1, p0, p1 = time_s[k - 1], time_s[k], pressure_kpa[k - 1], pressure_kpa[k]
+    return float(t0 + (t1 - t0) * (level_kpa - p0) / (p1 - p0))
+
+
+def valve_step_responses(muscle: MuscleConfig, contractions_pct=(0.0, 20.0), muscles_per_side=(1, 2),
+                         step_kpa: float = 600.0, duration_s: float = 0.5, dt_s: float = 0.0005) -> dict:
+    """One side's pressure after a 0 -> ``step_kpa`` command at fixed contractions, for
+    ``muscle.regulator.model`` = lag and = flow (the rest of ``muscle`` as given): time series
+    and the 10-90 % rise time, the times to 10, 90 and 95 % [s], per contraction [%] and
+    number of muscles the valve fills. The lag's response does not depend on either: one case."""
+    from pamrun.valve import make_regulator
+
+    time_s = np.arange(int(round(duration_s / dt_s)) + 1) * dt_s
+    every = max(1, int(round(0.002 / dt_s)))  # the series kept: every 2 ms
+    cases = []
+    for model in ("lag", "flow"):
+        cfg = replace(muscle, regulator=replace(muscle.regulator, model=model))
+        for contraction in contractions_pct if model == "flow" else contractions_pct[:1]:
+            for count in muscles_per_side if model == "flow" else muscles_per_side[:1]:
+                reg = make_regulator(cfg, np.zeros((1, 2)), count)
+                reg.reset(np.zeros((1, 2)))
+                voltage = reg.voltage_for_pressure_v(np.full((1, 2), step_kpa))
+                at = np.full((1, 2), float(contraction))
+                pressure = np.empty(len(time_s))
+                pressure[0] = reg.pressure_kpa[0, 0]
+                for k in range(1, len(time_s)):
+                    reg.step(voltage, dt_s, at)
+                    pressure[k] = reg.pressure_kpa[0, 0]
+                times = {f"t{share}_s": _crossing_s(time_s, pressure, share / 100 * step_kpa) for share in (10, 90, 95)}
+                rise = None if None in (times["t10_s"], times["t90_s"]) else times["t90_s"] - times["t10_s"]
+                flow = model == "flow"
+                cases.append({"model": model, "contraction_pct": float(contraction) if flow else None,
+                              "muscles_per_side": int(count) if flow else None,
+                              "volume_l": round(float(reg.volume_l[0, 0]), 5) if flow else None,
+                              "rise_10_90_s": None if rise is None else round(rise, 5),
+                              **{k: None if v is None else round(v, 5) for k, v in times.items()},
+                              "pressure_kpa": pressure[::every].round(2).tolist()})
+    reg = muscle.regulator
+    return {"step_kpa": step_kpa, "dt_s": dt_s, "every_s": every * dt_s,
+            "size": muscle.size, "nominal_length_m": muscle.nominal_length_m,
+            "regulator": {k: getattr(reg, k) for k in ("lag_s", "nominal_flow_nl_min", "critical_pressure_ratio",
+                                                         "supply_pressure_kpa", "reservoir_volume_l")},
+            "cases": cases}
+
+
+def print_valve_table(results: dict) -> None:
+    """Rich table of the rise times of :func:`valve_step_responses`."""
+    lag_ms = results["regulator"]["lag_s"] * 1000
+    table = Table(title=f"Regulator step 0 -> {results['step_kpa']:.0f} kPa, {results['size']} "
+                        f"{results['nominal_length_m'] * 1000:.0f} mm, lag {lag_ms:.0f} ms")
+    for col in ("model", "contraction (%)", "muscles", "volume (l)", "10-90 % (ms)", "to 90 % (ms)", "to 95 % (ms)"):
+        table.add_column(col, justify="left" if col == "model" else "right")
+
+    def ms(value):
+        return "never" if value is None else f"{1000 * value:.1f}"
+
+    for c in results["cases"]:
+        lag = c["model"] == "lag"  # any contraction, any volume
+        table.add_row(c["model"], "any" if lag else f"{c['contraction_pct']:.0f}",
+                      "any" if lag else str(c["muscles_per_side"]), "any" if lag else f"{c['volume_l']:.3f}",
+                      ms(c["rise_10_90_s"]), ms(c["t90_s"]), ms(c["t95_s"]))
+    console.print(table)
+
+
+def muscle_valve(dcfg: DictConfig) -> None:
+    """``pamrun muscle valve``: regulator step 0 -> 600 kPa, lag vs flow -> valve_step.json/.png."""
+    cfg: Config = to_object(dcfg)
+    out = run_dir()
+    results = valve_step_responses(cfg.muscle)
+    path = out / "valve_step.json"
+    path.write_text(json.dumps(results))
+    plots.valve_step(path, out / "valve_step.png")
+    print_valve_table(results)
+    console.print("Wrote valve_step.json, valve_step.png")
+
+
+# --------------------------------------------------------------------------- hysteresis
+
+
+def print_hysteresis_table(results: dict) -> None:
+    """Rich table of the loop areas of :func:`pamrun.hysteresis.hysteresis_loop`."""
+    table = Table(title=f"Loop area per cycle [J]: {results['size']} {results['nominal_length_m'] * 1000:.0f} mm, "
+                        f"contraction {results['center_pct']:g} +- {results['amplitude_pct']:g} %")
+    for col in ("pressure (kPa)", "none", "maxwell_slip", "analytic sum 4 f (A - f/k)"):
+        table.add_column(col, justify="right")
+    for c in results["cases"]:
+        table.add_row(f"{c['pressure_kpa']:.0f}", f"{c['area_none_j']:.2e}", f"{c['area_slip_j']:.4f}",
+                      f"{c['analytic_area_j']:.4f}")
+    console.print(table)
+
+
+def muscle_hysteresis(dcfg: DictConfig) -> None:
+    """``pamrun muscle hysteresis``: one muscle cycled at constant pressure, force vs contraction
+    with and without the Maxwell-slip elements -> hysteresis_loop.json/.png (loop areas [J])."""
+    from pamrun.hysteresis import hysteresis_loop
+
+    cfg: Config = to_object(dcfg)
+    out = run_dir()
+    results = hysteresis_loop(cfg.muscle)
+    path = out / "hysteresis_loop.json"
+    path.write_text(json.dumps(results))
+    plots.hysteresis_loop(path, out / "hysteresis_loop.png")
+    print_hysteresis_table(results)
+    console.print("Wrote hysteresis_loop.json, hysteresis_loop.png")
+
+
 # --------------------------------------------------------------------------- robot
 
 # The nine movements of thesis §10.2, on the left leg: (joint, limit side, label).
@@ -348,7 +465,22 @@ def body(dcfg: DictConfig) -> None:
         table.add_row(*("" if isinstance(v, float) and np.isnan(v) else f"{v:.4f}" if isinstance(v, float) else str(v)
                         for v in (row[k] for k in headers)))
     console.print(table)
+    if cfg.body.toe:
+        _print_toe(console, cfg.body, body_mod.anthropometry(cfg.body)["toe"], cfg.env.physics_dt_s)
     console.print(f"Robot mass {total_kg:.2f} kg. Wrote robot.xml, body.json, robot.png")
+
+
+def _print_toe(console, body_cfg, toe: dict, physics_dt_s: float) -> None:
+    """``pamrun body body.toe=true``: what the toe row is and how its hinge is set."""
+    lo, hi = body_cfg.toe_range_deg
+    console.print(
+        f"Toe (body.toe): the foot's front {body_cfg.toe_length_ratio:.0%} ({toe['x_m'] * 1000:.0f} mm) and "
+        f"{body_cfg.toe_mass_ratio:.1%} of its mass ({toe['mass_kg']:.3f} kg; the foot row is the whole foot), hinged "
+        f"{toe['hinge_x_m'] * 1000:.0f} mm ahead of the ankle at the metatarsal line; I about the hinge "
+        f"{toe['hinge_inertia_kgm2']:.2e} kg m2. Passive: spring {body_cfg.toe_stiffness_nm_per_rad} N m/rad (at most "
+        f"{body_cfg.toe_critical_stiffness_nm_per_rad(physics_dt_s):.0f} at {physics_dt_s * 1000:g} ms), damping "
+        f"{body_cfg.toe_damping_nms_per_rad} N m s/rad, range {lo:g}..{hi:g} deg (toe up negative). Its tip "
+        "carries the foot's front contact spheres; the foot stands on heel and ball (contact_ball_*).")
 
 
 def capacity(dcfg: DictConfig) -> None:
@@ -399,6 +531,16 @@ def capacity(dcfg: DictConfig) -> None:
         + ("[green]yes[/green]" if v["ankle_stiffness_ok"] else "[red]no[/red]")
         + f". Centre of mass {result['com_height_m']:.3f} m up."
     )
+    if "toe" in result:
+        toe = result["toe"]
+        console.print(
+            f"Toe (body.toe, passive, {toe['stiffness_nm_per_rad']} N m/rad): gives {toe['moment_at_stop_nm']:.1f} "
+            f"N m at its {toe['dorsiflexion_stop_deg']:.0f} deg stop. Push-off (human peak MTP moment per kg): "
+            f"{toe['push_off']['demand_nm']:.1f} N m at {toe['push_off']['angle_deg']:.0f} deg; standing on the toes "
+            f"alone: {toe['tip_toe']['demand_nm']:.1f} N m per foot, "
+            + (f"{toe['tip_toe']['angle_deg']:.0f} deg" if toe["tip_toe"]["within_range"]
+               else "past its stop: the toe folds to the stop, which holds the rest")
+            + ". Standing, the foot bears on heel and ball.")
     air = result["air_per_cycle_nl"]
     console.print(f"Air at the walking demand: about {air:.1f} normal litres per gait cycle, both legs (each muscle "
                   f"filled once from the band's low pressure to what its joint's peak needs; {air * 60:.0f} NL/min at one "

@@ -16,9 +16,10 @@ A Festo DMSP-20-260N fluidic muscle is modelled, as in the thesis, by three part
 
 Everything works on arrays of shape (n_pairs, 2) so the 20 muscles of the robot step at
 once. Force laws and dynamics are looked up by name in :data:`FORCE_LAWS`
-(pamrun/force_laws.py) and :data:`DYNAMICS`, so another law (inflation/deflation
-hysteresis, say) is one class, one registry entry and its name in
-``pamrun.config.robot.FORCE_LAW_NAMES`` away.
+(pamrun/force_laws.py) and :data:`DYNAMICS`, so another law is one class, one registry entry
+and its name in ``pamrun.config.robot.FORCE_LAW_NAMES`` away. Hysteresis
+(``muscle.spring.hysteresis``, pamrun/hysteresis.py) is a force H(path, P) taken off each
+muscle's F (Fce - H, FL - H_L); its state lives in :attr:`FirstOrderPairDynamics.hysteresis`.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from pamrun.force_laws import (  # noqa: F401  (the force laws, also reachable f
     contractile_force,
     zero_force_contraction_pct,
 )
+from pamrun.hysteresis import make_hysteresis
 
 if TYPE_CHECKING:
     from pamrun.config import MuscleConfig, PairConfig, RegulatorConfig, SpringConfig, StepExperiment
@@ -106,11 +108,13 @@ class Regulator:
             self._target = np.zeros(self.pressure_kpa.shape)
         return True
 
-    def step(self, voltage_v: np.ndarray, dt_s: float) -> bool:
+    def step(self, voltage_v: np.ndarray, dt_s: float, contraction_pct: np.ndarray | None = None) -> bool:
         """Advance by dt_s holding ``voltage_v``; return whether the pressure changed.
 
         The target is recomputed only when a new voltage array is passed (callers hold
         one array per command), so an ideal regulator costs nothing per physics step.
+        ``contraction_pct`` is not read: the lag does not depend on the muscles' volume (the
+        flow-limited valve, :class:`pamrun.valve.FlowRegulator`, does).
         """
         if voltage_v is not self._voltage:
             self._voltage = voltage_v
@@ -148,6 +152,10 @@ class FirstOrderPairDynamics:
     Euler diverges above ~2 ms. Each step is linearly implicit (Rosenbrock-Euler) on the
     full 2x2 Jacobian of each pair, solved in closed form: A-stable at any step size and
     exact at equilibrium, so a robot simulation can step it at 5 ms or more.
+
+    ``hysteresis`` (``muscle.spring.hysteresis``; None for ``none``): the Maxwell-slip elements
+    of every muscle (:class:`pamrun.hysteresis.MaxwellSlip`), whose force H each muscle's F
+    loses, here and in the kinematic coupling, which keeps its state here too.
     """
 
     def __init__(self, cfg: MuscleConfig, law: CoefficientLaw, n_pairs: int):
@@ -162,6 +170,7 @@ class FirstOrderPairDynamics:
         self.length_scale = SPRING_REFERENCE_LENGTH_M / cfg.nominal_length_m
         self.x_m = np.zeros((n_pairs, 2))
         self.force_n = np.zeros((n_pairs, 2))
+        self.hysteresis = make_hysteresis(cfg.spring, n_pairs, law.max_pressure_kpa)
         self._pressure: np.ndarray | None = None
         self._dt = 0.0
 
@@ -172,16 +181,21 @@ class FirstOrderPairDynamics:
         self.x_m = (np.broadcast_to(contraction_pct, self.x_m.shape) - self.rest_pct) / self.pct_per_m
 
     def reset(self, contraction_pct: np.ndarray) -> None:
-        """Muscles at ``contraction_pct`` [%]; what depends on pressure is recomputed at the next step."""
+        """Muscles at ``contraction_pct`` [%], hysteresis elements at rest; what depends on pressure
+        is recomputed at the next step."""
         self.set_contraction_pct(contraction_pct)
         self._pressure = None
+        if self.hysteresis is not None:
+            self.hysteresis.reset()
 
     def at_pressure(self, pressure_kpa: np.ndarray) -> None:
-        """Cache what depends on pressure only: force coefficients, S and D = tau S."""
+        """Cache what depends on pressure only: force coefficients, S, D = tau S (and the hysteresis' scale)."""
         self._pressure = pressure_kpa
         self._coef = self.law.at_pressure(pressure_kpa)
         self.s = self.spring(pressure_kpa) * self.length_scale
         self.d = self.tau_s * self.s
+        if self.hysteresis is not None:
+            self.hysteresis.at_pressure(pressure_kpa)
 
     def coefficients(self, pressure_kpa: np.ndarray) -> np.ndarray:
         """The force law's coefficients a_i(P) [N / %^i] at the last step's pressures, or at
@@ -204,6 +218,10 @@ class FirstOrderPairDynamics:
         x, h = self.x_m, self._h
         force, slope = self.law.force_and_slope(self._coef, self.rest_pct + self.pct_per_m * x)
         slope *= self.pct_per_m  # dF/dx [N/m]
+        if self.hysteresis is not None:  # F - H, and dH/dx of the sticking elements in the Jacobian
+            raw_force, raw_slope = force, slope
+            force = force - self.hysteresis.force_n()
+            slope = slope - self.hysteresis.stiffness_n_per_pct() * self.pct_per_m
         b = h * (force - force[:, ::-1]) - self._h_s * x  # dt * x' [m]
         # (I - dt J) dx = b, dt J = h * [[g1 - S1, -g2], [-g1, g2 - S2]] per pair; Cramer's rule.
         diag = 1.0 + self._h_s - h * slope
@@ -211,7 +229,11 @@ class FirstOrderPairDynamics:
         det = diag[:, 0] * diag[:, 1] - off[:, 0] * off[:, 1]
         dx = (diag[:, ::-1] * b - off * b[:, ::-1]) / det[:, None]
         x += dx
-        self.force_n = force + slope * dx
+        if self.hysteresis is None:
+            self.force_n = force + slope * dx
+        else:  # the elements moved exactly (slipping or not): F + dF/dx dx - H at the new state
+            self.hysteresis.move(self.pct_per_m * dx)
+            self.force_n = raw_force + raw_slope * dx - self.hysteresis.force_n()
         return self.contraction_pct()
 
 
@@ -224,14 +246,21 @@ class AntagonisticPairs:
     Command of thesis §9.5: V1 = V0 + dV, V2 = V0 - dV with dV = dv_max * a, a in [-1, 1].
     Joint torque T = k (F1 - F2) r [N m] with forces never negative, where ``force_scale``
     k = muscles in parallel x the size's force ratio (1 for one DMSP-20, the thesis).
+    ``muscles_per_side`` (n,): the muscles in parallel, which one regulator fills (read by the
+    flow-limited valve, ``muscle.regulator.model=flow``: pamrun/valve.py).
     """
 
-    def __init__(self, cfg: MuscleConfig, n_pairs: int, force_scale: float | np.ndarray = 1.0):
+    def __init__(self, cfg: MuscleConfig, n_pairs: int, force_scale: float | np.ndarray = 1.0,
+                 muscles_per_side: float | np.ndarray = 1.0):
+        # muscle.regulator.model: the lag (Regulator) or the flow-limited valve
+        from pamrun.valve import make_regulator
+
         self.cfg = cfg
         self.n_pairs = n_pairs
         self.force_scale = np.broadcast_to(np.asarray(force_scale, float), (n_pairs,)).copy()
         self.law = FORCE_LAWS[cfg.force_law](cfg.max_pressure_kpa)
-        self.regulator = Regulator(cfg.regulator, np.full((n_pairs, 2), cfg.v0_v * cfg.regulator.gain_kpa_per_v))
+        initial_kpa = np.full((n_pairs, 2), cfg.v0_v * cfg.regulator.gain_kpa_per_v)
+        self.regulator = make_regulator(cfg, initial_kpa, np.broadcast_to(muscles_per_side, (n_pairs,)))
         self.dynamics = DYNAMICS[cfg.dynamics](cfg, self.law, n_pairs)
         self._pressure = np.zeros((n_pairs, 2))
 
@@ -254,13 +283,16 @@ class AntagonisticPairs:
         return self.dynamics.contraction_pct()
 
     def step(self, voltage_v: np.ndarray, dt_s: float) -> None:
-        changed = self.regulator.step(voltage_v, dt_s)
+        changed = self.regulator.step(voltage_v, dt_s, self.dynamics.contraction_pct())
         self.dynamics.step(self.pressure_kpa, dt_s, changed)
 
     def forces_n(self) -> np.ndarray:
         """Force of one muscle of each side [N], (n, 2), never negative (before ``force_scale``)."""
         coef = self.dynamics.coefficients(self.pressure_kpa)
-        return np.maximum(self.law.force_and_slope(coef, self.contraction_pct())[0], 0.0)
+        force = self.law.force_and_slope(coef, self.contraction_pct())[0]
+        if self.dynamics.hysteresis is not None:
+            force = force - self.dynamics.hysteresis.force_n()
+        return np.maximum(force, 0.0)
 
     def torque_nm(self, radius_m: np.ndarray) -> np.ndarray:
         """Joint torque [N m] after the last step: (F1 - F2) r, forces never negative."""

@@ -42,6 +42,69 @@ def step_response(json_path: Path, png_path: Path) -> Path:
     return _save(fig, png_path, dpi=120)
 
 
+def valve_step(json_path: Path, png_path: Path) -> Path:
+    """A regulator's pressure after a step command, model=lag against model=flow, per contraction
+    (colour) and muscles filled by one valve (line style)."""
+    data = json.loads(Path(json_path).read_text())
+    cases = data["cases"]
+    contractions = sorted({c["contraction_pct"] for c in cases if c["model"] == "flow"})
+    colors = dict(zip(contractions, plt.cm.viridis(np.linspace(0.1, 0.8, len(contractions)))))
+    styles = {1: "-", 2: "--", 3: ":", 4: "-."}
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    lag = next(c for c in cases if c["model"] == "lag")
+    t = np.arange(len(lag["pressure_kpa"])) * data["every_s"]
+    ax.plot(t, lag["pressure_kpa"], color="k", lw=2.2, alpha=0.6,
+            label=f"lag {1000 * data['regulator']['lag_s']:.0f} ms (any volume): 10-90 % "
+                  f"{1000 * lag['rise_10_90_s']:.0f} ms")
+    for c in cases:
+        if c["model"] != "flow":
+            continue
+        rise = "never" if c["rise_10_90_s"] is None else f"{1000 * c['rise_10_90_s']:.0f} ms"
+        ax.plot(t, c["pressure_kpa"], color=colors[c["contraction_pct"]], ls=styles.get(c["muscles_per_side"], "-"),
+                label=f"flow, {c['contraction_pct']:.0f} %, {c['muscles_per_side']} muscle(s) "
+                      f"({c['volume_l']:.2f} l): {rise}")
+    for share in (0.1, 0.9):
+        ax.axhline(share * data["step_kpa"], color="gray", lw=0.8, ls=":")
+    reg = data["regulator"]
+    ax.set_title(f"Regulator step 0 -> {data['step_kpa']:.0f} kPa, {data['size']} "
+                 f"{1000 * data['nominal_length_m']:.0f} mm; valve {reg['nominal_flow_nl_min']:.0f} Nl/min, "
+                 f"supply {reg['supply_pressure_kpa']:.0f} kPa", fontsize=9)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("pressure [kPa]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right")
+    return _save(fig, png_path, dpi=110)
+
+
+def hysteresis_loop(json_path: Path, png_path: Path) -> Path:
+    """Force against contraction of one muscle at constant pressure, cycled sinusoidally: without
+    hysteresis (dashed, one curve) and with the Maxwell-slip elements (solid, a loop), per pressure;
+    right, the elements' part alone (with - without: -H, the loop itself)."""
+    data = json.loads(Path(json_path).read_text())
+    x = np.asarray(data["contraction_pct"])
+    second = slice(data["steps_per_cycle"], None)  # the steady cycle (the first starts at rest)
+    colors = plt.cm.viridis(np.linspace(0.1, 0.75, len(data["cases"])))
+    fig, (ax, right) = plt.subplots(1, 2, figsize=(11, 4.4), gridspec_kw={"width_ratios": [1.4, 1]})
+    for color, case in zip(colors, data["cases"]):
+        bar = case["pressure_kpa"] / 100
+        none, slip = np.asarray(case["force_none_n"])[second], np.asarray(case["force_slip_n"])[second]
+        ax.plot(x[second], none, color=color, ls="--", lw=1.2, label=f"{bar:g} bar, none: {case['area_none_j']:.1e} J")
+        ax.plot(x[second], slip, color=color, lw=1.6, label=f"{bar:g} bar, maxwell_slip: {case['area_slip_j']:.3f} J "
+                                                           f"(analytic {case['analytic_area_j']:.3f} J)")
+        right.plot(x[second], slip - none, color=color, lw=1.6, label=f"{bar:g} bar")
+    ax.set_title(f"Muscle hysteresis: {data['size']} {1000 * data['nominal_length_m']:.0f} mm, contraction "
+                 f"{data['center_pct']:g} +- {data['amplitude_pct']:g} %; loop area per cycle", fontsize=9)
+    right.set_title("the elements' force, with - without hysteresis", fontsize=9)
+    for a in (ax, right):
+        a.set_xlabel("contraction [%]")
+        a.grid(alpha=0.3)
+        a.legend(fontsize=7)
+    ax.set_xlabel("contraction [%]  (lower branch: contracting, upper: extending)")
+    ax.set_ylabel("force [N]")
+    right.set_ylabel("force difference [N]")
+    return _save(fig, png_path, dpi=110)
+
+
 LAW_STYLES = ("-", "--", ":", "-.")  # line style of each force law, in FORCE_LAWS' order (polynomial solid)
 
 

@@ -30,13 +30,14 @@ from pamrun.config.experiments import (JOB_METRICS, PERTURBABLE_SECTIONS, RANK_M
 from pamrun.config.learning import AlgoConfig, TrainConfig
 from pamrun.config.robot import (DYNAMICS_NAMES, FORCE_LAW_NAMES, LEG_JOINTS, SPRING_FILE, BodyConfig, JointAngles,
                                  JointCounts, JointRadii, MuscleConfig, RegulatorConfig, SpringConfig,
-                                 check_muscle_stretch)
+                                 check_muscle_stretch, check_toe_stiffness)
 from pamrun.config.task import EnvConfig, RewardConfig
 
 __all__ = ["CONF_DIR", "SPRING_FILE", "JOB_METRICS", "RANK_METRICS", "FORCE_LAW_NAMES", "DYNAMICS_NAMES", "ConfigError",
            "Config", "LEG_JOINTS", "RegulatorConfig", "SpringConfig", "MuscleConfig", "JointAngles", "JointCounts",
            "JointRadii",
-           "check_muscle_stretch", "BodyConfig", "RewardConfig", "EnvConfig", "AlgoConfig", "TrainConfig", "EvalConfig",
+           "check_muscle_stretch", "check_toe_stiffness",
+           "BodyConfig", "RewardConfig", "EnvConfig", "AlgoConfig", "TrainConfig", "EvalConfig",
            "OptunaConfig", "Perturbation", "flatten", "PERTURBABLE_SECTIONS", "SweepConfig", "StepExperiment", "PairConfig", "register_configs", "validate", "to_object",
            "preset", "upgrade_saved_config"]
 
@@ -73,6 +74,14 @@ class Config:
             check_muscle_stretch(self.muscle, self.body)
         except ConfigError as err:
             raise ConfigError(f"muscle.{err.key}", err.message) from None
+        try:  # body.toe: a spring MuJoCo integrates stably at the physics step
+            check_toe_stiffness(self.body, self.env.physics_dt_s)
+        except ConfigError as err:
+            raise ConfigError(f"body.{err.key}", err.message) from None
+        try:  # regulator.model=flow: the supply reaches the muscles' top pressure
+            self.muscle.regulator.check_supply(self.muscle.max_pressure_kpa)
+        except ConfigError as err:
+            raise ConfigError(f"muscle.regulator.{err.key}", err.message) from None
 
 
 # Keys renamed since a config could have been saved with a run: old section.key -> new key.

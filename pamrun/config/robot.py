@@ -18,6 +18,9 @@ LEG_JOINTS = ("hip_pitch", "hip_roll", "knee", "ankle_pitch", "ankle_roll")
 
 # --------------------------------------------------------------------------- muscle
 
+# Regulator dynamics pamrun/valve.py implements (RegulatorConfig.model).
+REGULATOR_MODELS = ("lag", "flow")
+
 
 @dataclass
 class RegulatorConfig:
@@ -31,6 +34,14 @@ class RegulatorConfig:
     regulators are quoted at about 50-100 ms response time, and the Lucy biped's team
     (VUB) found off-the-shelf regulating valves "too heavy and too slow" for walking. We
     take the fast end, a first-order lag of 50 ms (``lag_s``), for the default robot.
+
+    ``model`` picks the regulator's dynamics (pamrun/valve.py): ``lag``, that lag with
+    unlimited flow (the default, unchanged), or ``flow``, the same lag whose rate of change
+    is capped by what a proportional valve can flow into (or out of) the muscle's current
+    volume: ISO 6358 flow through the sonic conductance derived from ``nominal_flow_nl_min``
+    and ``critical_pressure_ratio``, filling from ``supply_pressure_kpa`` (or from a reservoir
+    of ``reservoir_volume_l`` refilled by a compressor) and exhausting to the atmosphere. The
+    ``flow`` fields are read by ``model=flow`` only.
     """
 
     gain_kpa_per_v: float = 100.0  # pressure per volt: 1 bar/V, the thesis' "linear" (§9.5)
@@ -39,12 +50,35 @@ class RegulatorConfig:
     min_pressure_kpa: float = 10.0  # 0.1 bar
     max_pressure_kpa: float = 1000.0  # 10 bar
     lag_s: float = 0.05  # first-order time constant [s]; 0 = ideal (the thesis)
+    model: str = "lag"  # lag: first-order lag, unlimited flow; flow: its rate capped by the valve (pamrun/valve.py)
+    # Festo, proportional directional control valve MPYE datasheet: MPYE-5-1/8-HF-010-B, standard nominal flow rate
+    # qnN = 700 l/min, which Festo measures from p1 = 6 bar to p2 = 5 bar (gauge; pamrun.valve.NOMINAL_FLOW_*_KPA).
+    # (The same datasheet gives 350 l/min for the low-flow MPYE-5-1/8-LF, which public valve models quote.)
+    nominal_flow_nl_min: float = 700.0  # the valve's standard nominal flow qnN [normal l/min] (MPYE-5-1/8-HF)
+    critical_pressure_ratio: float = 0.528  # ISO 6358 b (choked below it); the datasheet has none: an ideal nozzle's
+    supply_pressure_kpa: float = 800.0  # supply (gauge) [kPa], >= the top pressure the muscles are driven to
+    reservoir_volume_l: float = 0.0  # air tank between compressor and valves [litres]; 0 = an ideal supply
+    compressor_flow_nl_min: float = 200.0  # compressor refilling the tank to the supply pressure [normal l/min]; assumed
 
     def __post_init__(self) -> None:
         _positive(self, "gain_kpa_per_v", "max_voltage_v", "max_pressure_kpa")
         _non_negative(self, "min_voltage_v", "min_pressure_kpa", "lag_s")
         _require(self.min_voltage_v < self.max_voltage_v, "max_voltage_v", "must exceed min_voltage_v")
         _require(self.min_pressure_kpa < self.max_pressure_kpa, "max_pressure_kpa", "must exceed min_pressure_kpa")
+        _require(self.model in REGULATOR_MODELS, "model",
+                 f"unknown {self.model!r}; known: {', '.join(REGULATOR_MODELS)}")
+        _positive(self, "nominal_flow_nl_min", "supply_pressure_kpa")
+        _non_negative(self, "reservoir_volume_l", "compressor_flow_nl_min")
+        b = self.critical_pressure_ratio
+        _require(math.isfinite(b) and 0.0 < b < 1.0, "critical_pressure_ratio", f"must lie in (0, 1), got {b}")
+
+    def check_supply(self, muscle_max_pressure_kpa: float) -> None:
+        """``model=flow``: the supply must reach the top pressure the muscles are driven to, the
+        regulator's or the muscle's maximum, whichever is lower (a valve cannot fill above its supply)."""
+        top = min(self.max_pressure_kpa, muscle_max_pressure_kpa)
+        _require(self.model != "flow" or self.supply_pressure_kpa >= top, "supply_pressure_kpa",
+                 f"{self.supply_pressure_kpa} kPa is below the top pressure the muscles are driven to, {top} kPa "
+                 f"(min of regulator.max_pressure_kpa and the muscle's max_pressure_kpa)")
 
 
 # The spring table S(P) is for the thesis' DMSP-20-260: a muscle of length L0 has S * L_ref / L0.
@@ -68,6 +102,10 @@ def _read_spring_file(mtime_ns: int) -> dict[str, tuple[float, ...]]:
     return {k: tuple(float(v) for v in data[k]) for k in ("band_edges_kpa", "stiffness_n_per_m")}
 
 
+# Muscle hysteresis laws pamrun/hysteresis.py implements (SpringConfig.hysteresis; a test keeps the two in step).
+HYSTERESIS_LAWS = ("none", "maxwell_slip")
+
+
 @dataclass
 class SpringConfig:
     """Spring coefficient S(P) of the muscle, piecewise constant in pressure bands.
@@ -76,13 +114,26 @@ class SpringConfig:
     publishing them (§8.3); ``pamrun muscle calibrate`` fits them to the step responses
     of §10.1 and writes ``conf/muscle/spring/calibrated.yaml``. Band k covers
     ``[band_edges_kpa[k], band_edges_kpa[k+1])``; pressures past the last edge use the
-    last band. ``hysteresis`` names the law that chooses between inflation and deflation
-    tables (only ``none`` so far: one table for both, as in the thesis).
+    last band.
+
+    ``hysteresis`` names the muscle's hysteresis law (pamrun/hysteresis.py): ``none``, one
+    force-contraction curve for both directions (the thesis), or ``maxwell_slip``, elasto-slide
+    elements (stiffness ``slip_stiffness_n_per_m``, slip force ``slip_force_n``, both scaled by
+    P / ``slip_reference_pressure_kpa``) whose force opposes the muscle's on contraction and
+    adds to it on extension, so that a cycle encloses a loop. The ``slip_*`` fields are read by
+    ``maxwell_slip`` only.
     """
 
     band_edges_kpa: list[float] = field(default_factory=lambda: _calibrated_spring()["band_edges_kpa"])  # [kPa]
     stiffness_n_per_m: list[float] = field(default_factory=lambda: _calibrated_spring()["stiffness_n_per_m"])  # S [N/m]
-    hysteresis: str = "none"  # inflation/deflation law choosing the table (only none: one table, as the thesis)
+    hysteresis: str = "none"  # none (one force-contraction curve, the thesis) or maxwell_slip (pamrun/hysteresis.py)
+    # Maxwell-slip elements (one list entry each) of the DMSP-20-260 at slip_reference_pressure_kpa. No
+    # published DMSP value: assumed (pamrun/hysteresis.py), a loop 2 sum(f_i) = 75 N wide at 6 bar.
+    slip_stiffness_n_per_m: list[float] = field(
+        default_factory=lambda: [50000.0, 16000.0, 6000.0])  # k_i [N/m]; assumed: break-away f_i/k_i 0.25-2.1 mm
+    slip_force_n: list[float] = field(
+        default_factory=lambda: [12.5, 12.5, 12.5])  # f_i [N]; assumed: loop 2 sum(f_i) = 5 % of the rated 1500 N
+    slip_reference_pressure_kpa: float = 600.0  # P where k_i, f_i hold [kPa] (Festo's rated 6 bar); both scale P / it
 
     def __post_init__(self) -> None:
         edges, values = self.band_edges_kpa, self.stiffness_n_per_m
@@ -103,7 +154,16 @@ class SpringConfig:
             "stiffness_n_per_m",
             f"every value must be > 0 N/m, got {list(values)}",
         )
-        _require(self.hysteresis in ("none",), "hysteresis", f"unknown law {self.hysteresis!r}; known: none")
+        _require(self.hysteresis in HYSTERESIS_LAWS, "hysteresis",
+                 f"unknown law {self.hysteresis!r}; known: {', '.join(HYSTERESIS_LAWS)}")
+        stiffness, force = self.slip_stiffness_n_per_m, self.slip_force_n
+        _require(len(force) == len(stiffness), "slip_force_n",
+                 f"needs one value per element: {len(stiffness)} stiffnesses, got {len(force)} slip forces")
+        _require(all(math.isfinite(k) and k > 0 for k in stiffness), "slip_stiffness_n_per_m",
+                 f"every element's stiffness must be > 0 N/m, got {list(stiffness)}")
+        _require(all(math.isfinite(f) and f >= 0 for f in force), "slip_force_n",
+                 f"every element's slip force must be >= 0 N, got {list(force)}")
+        _positive(self, "slip_reference_pressure_kpa")
 
 
 # Festo DMSP fluidic muscles by inner diameter: catalogue maximum force [N] (Festo, Fluidic
@@ -305,6 +365,28 @@ def check_muscle_stretch(muscle: MuscleConfig, body: "BodyConfig") -> None:
 
 # --------------------------------------------------------------------------- body
 
+# The foot as ratios of body height H and mass M (thesis Table 8.2): length (heel to toe tip),
+# width and height (ankle to sole) / H, mass / M. pamrun/body.py builds the foot from them, and
+# the toe (BodyConfig.toe) is a part of that foot.
+FOOT_LENGTH_RATIO = 0.152
+FOOT_WIDTH_RATIO = 0.055
+FOOT_HEIGHT_RATIO = 0.039
+FOOT_MASS_RATIO = 0.0145
+# The toe box's height / the foot's: ours (the toes are thinner than the foot at the ankle). It
+# sets the toe's look and inertia, not where it touches the floor.
+TOE_HEIGHT_RATIO = 0.5
+# The human metatarsophalangeal (MTP) joint in walking, the reference of the toe's spring: the peak
+# MTP moment, 0.13 N m per kg of body mass, at pre-swing (Kim, Kim, Son & Jeong, "Kinetic role of
+# the metatarsophalangeal joint in normal walking: joint moment and power", Int. J. Precis. Eng.
+# Manuf. 13(8):1481-1485, 2012; 22 adults, barefoot), and the peak MTP dorsiflexion at push-off,
+# 60 deg barefoot (Bojsen-Moller & Lamoreux, "Significance of free dorsiflexion of the toes in
+# walking", Acta Orthop. Scand. 50:471-479, 1979).
+MTP_PEAK_MOMENT_NM_PER_KG = 0.13
+MTP_PEAK_DORSIFLEXION_DEG = 60.0
+# The largest omega * dt (omega = sqrt(k / I), the toe's own frequency) allowed: half the 2 at
+# which MuJoCo's Euler step of an explicit spring goes unstable (BodyConfig.toe_critical_stiffness_nm_per_rad).
+TOE_MAX_OMEGA_DT = 1.0
+
 
 @dataclass
 class BodyConfig:
@@ -313,7 +395,9 @@ class BodyConfig:
     Joint limits are degrees from the standing pose, for the left leg (Table 8.3), one
     ``<joint>_limits_deg`` field per LEG_JOINTS name; the right leg mirrors the roll joints.
     What the thesis leaves open (pelvis block, hip width, contact overlap) is documented
-    field by field.
+    field by field. ``toe`` adds a passive toe to each foot (thesis §13, future work), its
+    ``toe_*`` fields with their sources; its spring is checked against the physics step at
+    config time (:func:`check_toe_stiffness`, from ``Config``).
     """
 
     height_m: float = 1.80  # Table 8.2 reference
@@ -345,6 +429,26 @@ class BodyConfig:
     knee_limits_deg: list[float] = field(default_factory=lambda: [0.0, 90.0])
     ankle_pitch_limits_deg: list[float] = field(default_factory=lambda: [-45.0, 45.0])
     ankle_roll_limits_deg: list[float] = field(default_factory=lambda: [-25.0, 35.0])
+    # A passive toe (thesis §13, future work): a toe segment hinged about the lateral axis at the
+    # metatarsal line, held flat by a torsional spring; no muscle, no action (pamrun/body.py).
+    toe: bool = False  # add the passive toe to each foot (false: the thesis' one-piece foot, unchanged)
+    # toe (metatarsal line to tip) / foot length: the first MTP joint lies at 70-79 % of the foot's
+    # length from the heel (3-D scans of 453 feet: "Flexion location of the first metatarsophalangeal
+    # joint and the location of forefoot bend in general purpose women's footwear"), the lateral ones
+    # further back (OpenSim gait2392's oblique MTP axis: 65 %); a straight hinge line at 70 %.
+    toe_length_ratio: float = 0.30
+    # toe mass / foot mass: OpenSim gait2392 (Delp et al., IEEE TBME 37:757, 1990; masses after
+    # Anderson & Pandy 1999): talus 0.1, calcaneus 1.25, toes 0.2166 kg, so 0.2166 / 1.5666.
+    toe_mass_ratio: float = 0.138
+    # MTP spring [N m/rad]: the human's peak walking moment at its peak dorsiflexion (MTP_PEAK_*),
+    # for the default robot's 37.12 kg: 0.13 N m/kg * 37.12 kg / 1.047 rad = 4.61.
+    toe_stiffness_nm_per_rad: float = 4.61
+    # MTP damping [N m s/rad]: a tenth of the hinges' 1 (Table 8.2); for the default toe
+    # (I = 3.8e-4 kg m^2 about its hinge) a damping ratio b / (2 sqrt(k I)) of 1.2, so it settles flat.
+    toe_damping_nms_per_rad: float = 0.1
+    # MTP range [deg], dorsiflexion (toe up) negative: -60, the peak in barefoot walking (MTP_PEAK_*);
+    # +30, ours, a stop that keeps a swinging toe from folding under. (Not *_limits_deg: those are LEG_JOINTS'.)
+    toe_range_deg: list[float] = field(default_factory=lambda: [-MTP_PEAK_DORSIFLEXION_DEG, 30.0])
 
     def __post_init__(self) -> None:
         _positive(
@@ -377,3 +481,52 @@ class BodyConfig:
                 key,
                 f"must be [lower, upper] with lower < upper, got {list(lo_hi)}",
             )
+        _positive(self, "toe_length_ratio", "toe_mass_ratio", "toe_stiffness_nm_per_rad")
+        _non_negative(self, "toe_damping_nms_per_rad")
+        _require(self.toe_length_ratio <= 0.5, "toe_length_ratio",
+                 f"must lie in (0, 0.5]: the toe is the foot's front part, got {self.toe_length_ratio}")
+        _require(self.toe_mass_ratio < 1.0, "toe_mass_ratio",
+                 f"must lie in (0, 1): the toe is a part of the foot's mass, got {self.toe_mass_ratio}")
+        lo_hi = self.toe_range_deg
+        _require(len(lo_hi) == 2 and -90.0 <= lo_hi[0] < 0.0 < lo_hi[1] <= 90.0, "toe_range_deg",
+                 f"must be [lower, upper] with -90 <= lower < 0 < upper <= 90 (0: the toe flat), got {list(lo_hi)}")
+
+    def toe_box_m(self) -> tuple[float, float, float]:
+        """The toe's box: length (metatarsal line to tip), width, height [m]."""
+        foot_length, foot_height = FOOT_LENGTH_RATIO * self.height_m, FOOT_HEIGHT_RATIO * self.height_m
+        return self.toe_length_ratio * foot_length, FOOT_WIDTH_RATIO * self.height_m, TOE_HEIGHT_RATIO * foot_height
+
+    def toe_mass_kg(self) -> float:
+        return self.toe_mass_ratio * FOOT_MASS_RATIO * self.mass_kg
+
+    def toe_critical_stiffness_nm_per_rad(self, physics_dt_s: float) -> float:
+        """The stiffest toe spring [N m/rad] MuJoCo integrates stably, with margin, at ``physics_dt_s``.
+
+        MuJoCo's Euler step treats a joint's damping implicitly and its spring explicitly. For
+        the toe's hinge alone (inertia I about it, spring k, omega = sqrt(k / I)) one step is
+        v' = v - dt (k q + b v') / I, q' = q + dt v'. Without damping the step's two eigenvalues
+        solve l^2 - (2 - (omega dt)^2) l + 1 = 0: they stay on the unit circle while omega dt <= 2
+        and one grows past it, so k < 4 I / dt^2; the implicit damping only shrinks them. We
+        allow half that omega (TOE_MAX_OMEGA_DT = 1, k <= I / dt^2): the toe's effective inertia
+        in the robot is below its own (the foot moves with it), and at omega dt = 2 a period has
+        only pi steps. I is bounded below by the toe box's about its rear edge's line,
+        m (l^2 / 3 + h^2 / 12); the hinge sits a little above the sole, which only adds to it.
+        Checked on the default robot at dt = 2.5 ms: the toe's own inertia about its hinge is
+        3.8e-4 kg m^2, its effective one (1 / (M^-1)_toe, the foot moving with it) 2.75e-4, so
+        4 I_eff / dt^2 = 176 N m/rad; undamped, a swinging toe grows between 180 and 190 N m/rad.
+        This bound allows 60 (the default spring is 4.61).
+        """
+        length, _, height = self.toe_box_m()
+        inertia = self.toe_mass_kg() * (length**2 / 3 + height**2 / 12)
+        return inertia * (TOE_MAX_OMEGA_DT / physics_dt_s) ** 2
+
+
+def check_toe_stiffness(body: BodyConfig, physics_dt_s: float) -> None:
+    """``body.toe``: its spring must be one MuJoCo integrates stably at the physics step."""
+    if not body.toe:
+        return
+    most = body.toe_critical_stiffness_nm_per_rad(physics_dt_s)
+    _require(body.toe_stiffness_nm_per_rad <= most, "toe_stiffness_nm_per_rad",
+             f"{body.toe_stiffness_nm_per_rad} N m/rad is too stiff for the toe's inertia at env.physics_dt_s = "
+             f"{physics_dt_s} s: at most {most:.1f} N m/rad (omega dt <= {TOE_MAX_OMEGA_DT}, see "
+             "BodyConfig.toe_critical_stiffness_nm_per_rad); lower it or the physics step")
