@@ -379,7 +379,7 @@ def run_suite(cfg, spec: str, out: Path) -> list[dict]:
             for agent, kw in zip(agents, kwargs) for name in names]
     is_held_out = warn_if_not_held_out(agents, cfg, console)
     results, workers, wall = run_all([r[0] for r in runs], [r[2] for r in runs], ecfg, console, keep_steps=False,
-                                     what=f"agent(s) x {len(names)} perturbation(s)")
+                                     what=f"runs ({len(agents)} agent(s) x {len(names)} perturbation(s))")
     rows = []
     with (out / "robustness_episodes.jsonl").open("w") as fh:
         for (agent, name, _), episodes in zip(runs, results):

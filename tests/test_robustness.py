@@ -135,6 +135,25 @@ def test_a_perturbation_reaches_the_simulated_robot(tmp_path):
     assert perturb(kwargs, p["nominal"], "x") == kwargs and kwargs["body"]["friction_static"] == 0.5  # no mutation
 
 
+def test_the_models_suite_puts_each_pneumatic_model_into_the_robot(tmp_path):
+    """eval.suite=models: each of its perturbations builds the agent's robot with that model
+    (the valve, the hysteresis elements, the Tondu-Lopez law, the toes), and it steps."""
+    cfg = to_object(compose_config())
+    kwargs = env_kwargs(_agent(tmp_path, {}), cfg)
+    assert cfg.eval.suites["models"] == ["nominal", "valve_flow", "hysteresis", "force_law", "toe"]
+    built = {name: PamWalkerEnv(**perturb(kwargs, cfg.eval.perturbations[name], name))
+             for name in cfg.eval.suites["models"]}
+    assert type(built["valve_flow"].drive.pairs.regulator).__name__ == "FlowRegulator"
+    assert built["hysteresis"].muscle_cfg.spring.hysteresis == "maxwell_slip"
+    assert type(built["force_law"].drive.pairs.law).__name__ == "TonduLopez"
+    assert built["toe"].model.nq == built["nominal"].model.nq + 2  # a hinge per toe
+    for name, env in built.items():
+        env.reset(seed=0)
+        obs, *_ = env.step(np.zeros(N_JOINTS))
+        assert obs.shape == (OBS_SIZE,) and np.all(np.isfinite(obs)), name
+        env.close()
+
+
 @pytest.mark.parametrize("spec, key", [
     (Perturbation(values={"body": {"friction_static": -0.1}}), "p.values.body.friction_static"),
     (Perturbation(values={"muscle": {"regulator": {"lag_s": -0.05}}}), "p.values.muscle.regulator.lag_s"),

@@ -87,6 +87,22 @@ def _robustness_perturbations() -> dict[str, Perturbation]:
     }
 
 
+def _model_perturbations() -> dict[str, Perturbation]:
+    """The models suite (``eval.suite=models``): the agent's robot under each pneumatic model
+    beyond the thesis', so a policy's transfer between models is measured. Each is the model's
+    option as it ships (pamrun/valve.py, pamrun/hysteresis.py, pamrun/force_laws.py, body.toe)."""
+    return {
+        "nominal": Perturbation("the evaluation as is"),
+        "valve_flow": Perturbation("flow-limited valve (muscle.regulator.model=flow)",
+                                   values={"muscle": {"regulator": {"model": "flow"}}}),
+        "hysteresis": Perturbation("Maxwell-slip hysteresis (muscle.spring.hysteresis=maxwell_slip)",
+                                   values={"muscle": {"spring": {"hysteresis": "maxwell_slip"}}}),
+        "force_law": Perturbation("Tondu-Lopez force law (muscle.force_law=tondu_lopez)",
+                                  values={"muscle": {"force_law": "tondu_lopez"}}),
+        "toe": Perturbation("passive toes (body.toe=true)", values={"body": {"toe": True}}),
+    }
+
+
 @dataclass
 class EvalConfig:
     """``pamrun eval``: how saved agents are tested and ranked (thesis §10.3).
@@ -134,12 +150,13 @@ class EvalConfig:
     video_width: int = 640
     video_height: int = 480
     suite: str = ""  # "" = one evaluation; a name in suites: every agent under each of its perturbations
-    suites: dict[str, list[str]] = field(
-        default_factory=lambda: {"robustness": list(_robustness_perturbations())})  # suite -> its perturbations' names
+    suites: dict[str, list[str]] = field(default_factory=lambda: {  # suite -> its perturbations' names
+        "robustness": list(_robustness_perturbations()), "models": list(_model_perturbations())})
     # Typed Any, not Perturbation, so that `+eval.perturbations.NAME.values.env.KEY=...` can add one
     # on the command line; __post_init__ makes each a Perturbation.
     perturbations: dict[str, Any] = field(default_factory=lambda: {
-        k: asdict(v) for k, v in _robustness_perturbations().items()})  # name -> a Perturbation (note, scale, values)
+        k: asdict(v) for k, v in {**_robustness_perturbations(), **_model_perturbations()}.items()
+    })  # name -> a Perturbation (note, scale, values)
 
     def __post_init__(self) -> None:
         for name in ("episodes", "top_k"):
