@@ -1,13 +1,16 @@
 """Environment steps per second vs bare MuJoCo stepping of the same model.
 
-    python benchmarks/env_step.py [--seconds 5] [--repeats 5] [--presets sized thesis]
+    python benchmarks/env_step.py [--seconds 5] [--repeats 5] [--presets sized thesis] [--models]
 
 Prints, per muscle preset, control steps/s of PamWalker-v0 with random actions and, in the same run, the
 rate of bare ``mj_step`` on the same model with the same number of physics substeps
 per control step and no muscle computation; their ratio is the muscle model's (and the
 env's Python's) cost. The sized preset (kinematic coupling) is measured with both
 ``muscle.kernel=numba`` (the compiled muscle step, compiled or loaded from its cache before
-timing) and ``numpy`` (the reference); the thesis coupling always uses numpy.
+timing) and ``numpy`` (the reference); the thesis coupling always uses numpy. ``--models``
+measures the sized preset instead with each pneumatic model beyond the thesis' (``MODELS``:
+the flow-limited valve, hysteresis, the Tondu-Lopez law, the toe) against today's, both
+kernels, in the same run.
 
 Each measurement is repeated ``--repeats`` times, env and bare alternating so that a change
 of machine load hits both; the median and the range (min-max) of the env rate, the bare
@@ -69,12 +72,27 @@ def warm_up(env: PamWalkerEnv) -> float:
     return time.perf_counter() - start
 
 
+# The pneumatic models (the same as eval.suite=models), as env keyword-argument overrides.
+MODELS = {
+    "valve_flow": {"muscle": {"regulator": {"model": "flow"}}},
+    "hysteresis": {"muscle": {"spring": {"hysteresis": "maxwell_slip"}}},
+    "force_law": {"muscle": {"force_law": "tondu_lopez"}},
+    "toe": {"body": {"toe": True}},
+}
+
+
+def merged(base: dict, over: dict) -> dict:
+    return {k: merged(base.get(k, {}), v) if isinstance(v, dict) else v for k, v in over.items()} | {
+        k: v for k, v in base.items() if k not in over}
+
+
 def spread(values: list[float]) -> tuple[float, float, float]:
     return min(values), statistics.median(values), max(values)
 
 
-def measure(name: str, kernel: str, seconds: float, repeats: int) -> dict:
-    env = PamWalkerEnv(muscle={**preset("muscle", name), "kernel": kernel})
+def measure(name: str, kernel: str, seconds: float, repeats: int, model: str = "") -> dict:
+    kwargs = merged({"muscle": {**preset("muscle", name), "kernel": kernel}}, MODELS.get(model, {}))
+    env = PamWalkerEnv(**kwargs)
     used = "numba" if env.drive.compiled else "numpy"  # the thesis coupling is numpy only
     ready_s = warm_up(env)
     rates_env, rates_bare, ratios = [], [], []
@@ -85,12 +103,13 @@ def measure(name: str, kernel: str, seconds: float, repeats: int) -> dict:
     env.close()
     (e_lo, e_med, e_hi), (b_lo, b_med, b_hi) = spread(rates_env), spread(rates_bare)
     r_lo, r_med, r_hi = spread(ratios)
-    label = f"{name} ({env.muscle_cfg.coupling}, {used})"
-    print(f"{label:>26}: env {e_med:7.1f} [{e_lo:7.1f}-{e_hi:7.1f}] control steps/s | bare MuJoCo {b_med:7.1f} "
+    label = f"{name}{' + ' + model if model else ''} ({env.muscle_cfg.coupling}, {used})"
+    print(f"{label:>40}: env {e_med:7.1f} [{e_lo:7.1f}-{e_hi:7.1f}] control steps/s | bare MuJoCo {b_med:7.1f} "
           f"[{b_lo:7.1f}-{b_hi:7.1f}] ({env.n_substeps} x {env.model.opt.timestep * 1000:.1f} ms) | "
           f"ratio {r_med:.3f} [{r_lo:.3f}-{r_hi:.3f}]  (warm-up {ready_s:.2f} s)")
     return {
         "preset": name,
+        "model": model or "today",
         "coupling": env.muscle_cfg.coupling,
         "kernel": used,
         "physics_dt_s": env.model.opt.timestep,
@@ -112,10 +131,14 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=5.0, help="length of one measurement")
     parser.add_argument("--repeats", type=int, default=5, help="measurements per rate (env and bare alternating)")
     parser.add_argument("--presets", nargs="+", default=["sized", "thesis"])
+    parser.add_argument("--models", action="store_true", help="the sized preset with each pneumatic model")
     args = parser.parse_args()
     print(f"median [min-max] of {args.repeats} x {args.seconds:g} s each")
     results = []
-    for name in args.presets:
+    for model in ("", *MODELS) if args.models else ():
+        for kernel in ("numba", "numpy"):
+            results.append(measure("sized", kernel, args.seconds, args.repeats, model))
+    for name in () if args.models else args.presets:
         coupling = preset("muscle", name).get("coupling", MuscleConfig().coupling)
         for kernel in (("numba", "numpy") if coupling == "kinematic" else ("numpy",)):
             results.append(measure(name, kernel, args.seconds, args.repeats))
