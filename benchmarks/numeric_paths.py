@@ -1,6 +1,6 @@
 """The shipped agent's walk test on several numeric paths: the margins of tests/test_shipped_agent.py.
 
-    python benchmarks/numeric_paths.py [--ckpt agents/walk_td3_seed0.pt] [--episodes 50]
+    python benchmarks/numeric_paths.py [--ckpt agents/walker_td3_seed0.pt] [--episodes 50]
 
 A chaotic gait turns last-bit differences (another CPU, another muscle kernel) into other
 episodes. This runs the agent's held-out episodes on each numeric path pamrun has (muscle
@@ -33,7 +33,7 @@ PATHS = (("numba", 1, 1000), ("numba", 2, 1000), ("numpy", 1, 1000), ("numpy", 2
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--ckpt", default=str(ROOT / "agents" / "walk_td3_seed0.pt"))
+    parser.add_argument("--ckpt", default=str(ROOT / "agents" / "walker_td3_seed0.pt"))
     parser.add_argument("--episodes", type=int, default=50)
     args = parser.parse_args()
     cfg = Config()

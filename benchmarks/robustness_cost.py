@@ -1,6 +1,6 @@
 """Cost of ``pamrun eval eval.suite=robustness``: seconds per agent x perturbation x episode.
 
-    python benchmarks/robustness_cost.py [--ckpt agents/walk_td3_seed0.pt] [--episodes 50] [--workers 2] [--out DIR]
+    python benchmarks/robustness_cost.py [--ckpt agents/walker_td3_seed0.pt] [--episodes 50] [--workers 2] [--out DIR]
 
 Runs the suite (every perturbation of ``eval.suites.robustness``) through
 ``pamrun.evaluate.run_suite`` and, in the same process as the baseline, the plain
@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--ckpt", default=str(ROOT / "agents" / "walk_td3_seed0.pt"))
+    parser.add_argument("--ckpt", default=str(ROOT / "agents" / "walker_td3_seed0.pt"))
     parser.add_argument("--episodes", type=int, default=50)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, help="keep both evaluations' files here (default: a temporary folder)")

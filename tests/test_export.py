@@ -132,7 +132,7 @@ def test_bad_input_fails_before_anything_is_written(tmp_path, case, key):
 
 @pytest.mark.slow
 def test_the_shipped_walker_exports_to_its_own_actions(tmp_path):
-    """agents/walk_td3_seed0.pt on 1,000 observations of its own held-out episodes: ONNX Runtime
+    """agents/walker_td3_seed0.pt on 1,000 observations of its own held-out episodes: ONNX Runtime
     and TorchScript give the actor's actions to 1e-5 (measured 1.4e-6 and 0; on N(0, 1)
     observations, far outside what the robot senses, ONNX Runtime's float32 GEMM differs by
     up to 1.03e-5)."""
@@ -142,7 +142,7 @@ def test_the_shipped_walker_exports_to_its_own_actions(tmp_path):
     from pamrun.env import PamWalkerEnv
     from pamrun.rollout import env_kwargs, make_policy
 
-    path = str(Path(__file__).parents[1] / "agents" / "walk_td3_seed0.pt")
+    path = str(Path(__file__).parents[1] / "agents" / "walker_td3_seed0.pt")
     agent = load_agent(path)
     policy, env, obs = make_policy(agent), PamWalkerEnv(**env_kwargs(agent, Config())), []
     for seed in (1000, 1001, 1002):
