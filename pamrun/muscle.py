@@ -6,7 +6,8 @@ A Festo DMSP-20-260N fluidic muscle is modelled, as in the thesis, by three part
   260 mm nominal length] and pressure P [kPa] (Table 8.4's fifth-order polynomial, or a
   geometric model fitted to it: pamrun/force_laws.py, imported here);
 * a **pressure regulator** (Festo VPPM): command voltage [V] -> pressure [kPa], clipped to
-  its 0.1-10 bar range, with an optional first-order lag;
+  its 0.1-10 bar range, with an optional first-order lag, or the flow-limited valve
+  (pamrun/valve.py, the regulators' home, imported here);
 * **dynamics** D x' + S x = Fce - FL (§8.3, first-order three-element model): x is the
   muscle's displacement [m] measured from its rest contraction, S(P) [N/m] a table per
   pressure band, D = tau * S, Fce = F(x, P) of this muscle and FL = F(x2, P2) of its
@@ -24,11 +25,13 @@ muscle's F (Fce - H, FL - H_L); its state lives in :attr:`FirstOrderPairDynamics
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pamrun.air import (  # noqa: F401  (the volume and air, also reachable from here)
+    AIR_TEMPERATURE_K, ATMOSPHERE_KPA, MAX_CONTRACTION_PCT, NEUTRAL_BRAID_ANGLE_RAD, NORMAL_PRESSURE_KPA,
+    NORMAL_TEMPERATURE_K, AirMeter, air_nl, muscle_volume_l)
 from pamrun.config.robot import MUSCLE_INNER_DIAMETER_M, SPRING_REFERENCE_LENGTH_M  # noqa: F401  (D0 per size)
 from pamrun.force_laws import (  # noqa: F401  (the force laws, also reachable from here)
     FITTED_MIN_CONTRACTION_PCT,
@@ -42,90 +45,10 @@ from pamrun.force_laws import (  # noqa: F401  (the force laws, also reachable f
     zero_force_contraction_pct,
 )
 from pamrun.hysteresis import make_hysteresis
+from pamrun.valve import Regulator, make_regulator  # noqa: F401  (the regulator, also reachable from here)
 
 if TYPE_CHECKING:
-    from pamrun.config import MuscleConfig, PairConfig, RegulatorConfig, SpringConfig, StepExperiment
-
-
-class Regulator:
-    """VPPM proportional pressure regulator: voltage [V] -> pressure [kPa] (thesis §8.3).
-
-    Linear (``gain_kpa_per_v``), input clipped to its voltage range and output to its
-    pressure range (0.1-10 bar). With ``lag_s`` > 0 the pressure follows the target
-    through an exactly discretised first-order lag; with 0 it is reached at once.
-
-    State: ``pressure_kpa`` (the output), :attr:`target_kpa` (where it is heading) and the
-    command held (a voltage array; a new array is a new command). :meth:`step` advances all
-    three; a caller that computes the target and the lag itself (the compiled muscle step,
-    :class:`pamrun.kernels.CompiledStep`) takes the command with :meth:`hold` and updates
-    ``pressure_kpa`` and ``target_kpa`` in place.
-    """
-
-    def __init__(self, cfg: RegulatorConfig, initial_pressure_kpa: np.ndarray):
-        self.cfg = cfg
-        self.pressure_kpa = np.array(initial_pressure_kpa, dtype=float)
-        self._voltage: np.ndarray | None = None
-        self._target = self.pressure_kpa.copy()
-
-    def reset(self, pressure_kpa: np.ndarray) -> None:
-        """Output at ``pressure_kpa`` [kPa] (a new array) and no command held: the next is new."""
-        self.pressure_kpa = np.array(pressure_kpa, dtype=float)
-        self._voltage = None
-
-    @property
-    def target_kpa(self) -> np.ndarray:
-        """Pressure [kPa] the output is heading to: the held command's, clipped (see :meth:`hold`)."""
-        return self._target
-
-    def target_pressure_kpa(self, voltage_v: np.ndarray) -> np.ndarray:
-        c = self.cfg
-        voltage_v = np.clip(voltage_v, c.min_voltage_v, c.max_voltage_v)
-        return np.clip(c.gain_kpa_per_v * voltage_v, c.min_pressure_kpa, c.max_pressure_kpa)
-
-    def voltage_for_pressure_v(self, pressure_kpa: np.ndarray) -> np.ndarray:
-        """Inverse of the linear map (for experiments that are specified in pressure)."""
-        return np.asarray(pressure_kpa, float) / self.cfg.gain_kpa_per_v
-
-    def lag_factor(self, dt_s: float) -> float:
-        """Share of the gap to the target the pressure closes in dt_s: 1 - exp(-dt_s / lag_s) (0 if no lag)."""
-        lag = self.cfg.lag_s
-        return float(-np.expm1(-dt_s / lag)) if lag > 0 else 0.0
-
-    def hold(self, voltage_v: np.ndarray) -> bool:
-        """Take ``voltage_v`` (the output's shape) [V] as the command, without computing its target.
-
-        Returns whether it is a new command (another array than the one held), whose target
-        the caller then writes into :attr:`target_kpa` in place, as :meth:`step` would
-        compute it.
-        """
-        if voltage_v is self._voltage:
-            return False
-        if np.shape(voltage_v) != self.pressure_kpa.shape:
-            raise ValueError(f"regulator voltages must have shape {self.pressure_kpa.shape}, "
-                             f"got {np.shape(voltage_v)}")
-        self._voltage = voltage_v
-        if not isinstance(self._target, np.ndarray) or self._target.shape != self.pressure_kpa.shape:
-            self._target = np.zeros(self.pressure_kpa.shape)
-        return True
-
-    def step(self, voltage_v: np.ndarray, dt_s: float, contraction_pct: np.ndarray | None = None) -> bool:
-        """Advance by dt_s holding ``voltage_v``; return whether the pressure changed.
-
-        The target is recomputed only when a new voltage array is passed (callers hold
-        one array per command), so an ideal regulator costs nothing per physics step.
-        ``contraction_pct`` is not read: the lag does not depend on the muscles' volume (the
-        flow-limited valve, :class:`pamrun.valve.FlowRegulator`, does).
-        """
-        if voltage_v is not self._voltage:
-            self._voltage = voltage_v
-            self._target = self.target_pressure_kpa(voltage_v)
-            if self.cfg.lag_s == 0:
-                self.pressure_kpa = self._target.copy()
-                return True
-        if self.cfg.lag_s > 0:
-            self.pressure_kpa += (self._target - self.pressure_kpa) * self.lag_factor(dt_s)
-            return True
-        return False
+    from pamrun.config import MuscleConfig, PairConfig, SpringConfig, StepExperiment
 
 
 class SpringTable:
@@ -252,9 +175,7 @@ class AntagonisticPairs:
 
     def __init__(self, cfg: MuscleConfig, n_pairs: int, force_scale: float | np.ndarray = 1.0,
                  muscles_per_side: float | np.ndarray = 1.0):
-        # muscle.regulator.model: the lag (Regulator) or the flow-limited valve
-        from pamrun.valve import make_regulator
-
+        # muscle.regulator.model: the lag (Regulator) or the flow-limited valve (pamrun/valve.py)
         self.cfg = cfg
         self.n_pairs = n_pairs
         self.force_scale = np.broadcast_to(np.asarray(force_scale, float), (n_pairs,)).copy()
@@ -367,102 +288,3 @@ def calibrate_spring(muscle: MuscleConfig, pair: PairConfig) -> tuple[list[float
 
     fit = least_squares(residuals, start, x_scale=1.0, xtol=1e-10, ftol=1e-10)
     return [float(round(v, 3)) for v in table(fit.x)], bands
-
-
-# --------------------------------------------------------------------------- volume and air
-
-# Largest contraction: about 25 % of the nominal length (Festo DMSP catalogue; THESIS.md §8).
-MAX_CONTRACTION_PCT = 25.0
-# Braid angle at which a McKibben muscle stops contracting, arccos(1/sqrt(3)) = 54.7 deg
-# (Chou & Hannaford 1996: the pressure force vanishes there).
-NEUTRAL_BRAID_ANGLE_RAD = float(np.arccos(1.0 / np.sqrt(3.0)))
-# Normal litres (DIN 1343 normal conditions): 101.325 kPa and 0 degC.
-NORMAL_PRESSURE_KPA = 101.325
-NORMAL_TEMPERATURE_K = 273.15
-# The air in the muscles: room temperature, 20 degC (ISO 8778's standard reference atmosphere).
-AIR_TEMPERATURE_K = 293.15
-# Pressures in pamrun are gauge; absolute = gauge + the ambient, taken as the standard atmosphere.
-ATMOSPHERE_KPA = 101.325
-
-
-class AirMeter:
-    """The volume, gas and supply air of a robot's muscles (:func:`muscle_volume_l`,
-    :func:`air_nl`), its geometry's constants computed once: the env meters every control
-    step with it (``info["air_nl"]``, ``reward.kair``).
-
-    ``muscles_per_side``: muscles in parallel per direction of each of the 10 joints (one
-    value, or (10,)); arrays of 20 values are the (10, 2) pairs raveled.
-    """
-
-    def __init__(self, nominal_length_m: float, inner_diameter_m: float, muscles_per_side=1,
-                 temperature_k: float = AIR_TEMPERATURE_K):
-        l0 = self.nominal_length_m = float(nominal_length_m)
-        b = (1.0 - MAX_CONTRACTION_PCT / 100.0) * l0 / math.cos(NEUTRAL_BRAID_ANGLE_RAD)  # fibre length [m]
-        turns = b * math.sqrt(1.0 - (l0 / b) ** 2) / (math.pi * inner_diameter_m)
-        self._b2, self._litres = b * b, 1000.0 / (4.0 * math.pi * turns**2)  # m^3 -> litres
-        count = np.asarray(muscles_per_side, float)
-        self.count = np.repeat(count, 2) if count.ndim else count  # both muscles of a joint
-        self.nl_per_kpa_l = NORMAL_TEMPERATURE_K / (NORMAL_PRESSURE_KPA * temperature_k)
-
-    def volume_l(self, contraction_pct) -> np.ndarray:
-        length = (1.0 - np.minimum(contraction_pct, MAX_CONTRACTION_PCT) / 100.0) * self.nominal_length_m
-        return length * (self._b2 - length * length) * self._litres
-
-    def gas_kpa_l(self, pressure_kpa, contraction_pct) -> np.ndarray:
-        """Each muscle's gas amount P V [kPa litres], P absolute (gauge + 101.325 kPa)."""
-        return (np.asarray(pressure_kpa, float) + ATMOSPHERE_KPA) * self.volume_l(contraction_pct)
-
-    def drawn_nl(self, gas_before_kpa_l, gas_after_kpa_l) -> float:
-        """Supply air [normal litres] drawn between two gas states: each muscle's growth of
-        P V, none where it falls (it exhausts to the atmosphere), times its count."""
-        drawn = np.maximum(np.subtract(gas_after_kpa_l, gas_before_kpa_l), 0.0) * self.count
-        return float(drawn.sum() * self.nl_per_kpa_l)
-
-
-def muscle_volume_l(contraction_pct, nominal_length_m: float, inner_diameter_m: float) -> np.ndarray:
-    """Inner volume [litres] of one muscle at a contraction [% of nominal length], vectorised.
-
-    Chou & Hannaford's geometric model (C.-P. Chou, B. Hannaford, "Measurement and modeling
-    of McKibben pneumatic artificial muscles", IEEE Trans. Robotics and Automation 12(1),
-    1996): the muscle is a cylinder inside a braid of fibres of length b wound n turns
-    around it, at braid angle theta to the axis, so
-
-        L = b cos(theta),   D = b sin(theta) / (n pi),   V = pi D^2 L / 4 = L (b^2 - L^2) / (4 pi n^2).
-
-    b and n are fixed by two facts: the muscle contracts until the braid reaches its neutral
-    angle 54.7 deg (cos = 1/sqrt(3)) at ``MAX_CONTRACTION_PCT`` (25 %), so
-    b = sqrt(3) (1 - 0.25) L0; and at 0 % it has its nominal length L0 and inner diameter
-    D0, so n = b sin(theta0) / (pi D0) with cos(theta0) = L0 / b. Then V(0 %) = pi D0^2 L0 / 4
-    exactly, and V grows with contraction up to its maximum at 25 % (27/22 of V(0 %)).
-    Contraction past 25 % is clipped to 25 % (the braid cannot pass its neutral angle); a
-    stretched muscle (negative contraction) has a smaller volume.
-
-    The rubber wall is ignored (a thin-walled braid): its thickness fills part of the
-    cylinder, so the model slightly over-estimates the volume, and with it the air.
-    """
-    return AirMeter(nominal_length_m, inner_diameter_m).volume_l(np.asarray(contraction_pct, float))
-
-
-def air_nl(pressure_kpa, contraction_pct, nominal_length_m: float, inner_diameter_m: float,
-           muscles_per_side=1, temperature_k: float = AIR_TEMPERATURE_K) -> float:
-    """Supply air [normal litres] the muscles draw over a series of states.
-
-    ``pressure_kpa`` (gauge) and ``contraction_pct`` are (n, 20) arrays, one row per
-    step, muscles ordered as the (10, 2) pairs raveled; ``muscles_per_side`` is the number of
-    muscles in parallel per direction of each of the 10 joints (one value, or (10,)): each
-    of them draws the same air as the muscle it doubles. Between consecutive rows a muscle
-    holding the gas amount P V (absolute pressure P = gauge + 101.325 kPa, volume V from
-    :func:`muscle_volume_l`) draws air only while P V grows (being filled, or contracting at
-    constant pressure); when it falls the muscle exhausts to the atmosphere and draws none:
-
-        air_nl = sum_steps sum_muscles count * max(0, Delta(P V)) / P_N * T_N / T
-
-    with P_N = 101.325 kPa and T_N = 273.15 K (DIN 1343 normal litres). The fill is
-    isothermal and the air an ideal gas at ``temperature_k``, by default room temperature
-    (20 degC): a muscle filled from p1 to p2 at constant volume V draws
-    V (p2 - p1) / 101.325 * 273.15 / 293.15 Nl (0.93 V (p2 - p1) / 101.325). Only changes
-    between the rows count: the fill before the first row is not included.
-    """
-    meter = AirMeter(nominal_length_m, inner_diameter_m, muscles_per_side, temperature_k)
-    gas = meter.gas_kpa_l(pressure_kpa, np.asarray(contraction_pct, float))
-    return meter.drawn_nl(gas[:-1], gas[1:])

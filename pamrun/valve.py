@@ -67,8 +67,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pamrun.muscle import (AIR_TEMPERATURE_K, ATMOSPHERE_KPA, MAX_CONTRACTION_PCT, NORMAL_PRESSURE_KPA,
-                           NORMAL_TEMPERATURE_K, Regulator, muscle_volume_l)
+from pamrun.air import (AIR_TEMPERATURE_K, ATMOSPHERE_KPA, MAX_CONTRACTION_PCT, NORMAL_PRESSURE_KPA,
+                        NORMAL_TEMPERATURE_K, muscle_volume_l)
 
 if TYPE_CHECKING:
     from pamrun.config import MuscleConfig, RegulatorConfig
@@ -106,6 +106,87 @@ def volume_cubic_l(nominal_length_m: float, inner_diameter_m: float) -> np.ndarr
     c <= 25 %: a cubic in c, so four of its values fix it (the compiled step evaluates it so)."""
     c = np.array([0.0, 8.0, 16.0, 24.0])
     return np.linalg.solve(np.vander(c, 4, increasing=True), muscle_volume_l(c, nominal_length_m, inner_diameter_m))
+
+
+class Regulator:
+    """VPPM proportional pressure regulator: voltage [V] -> pressure [kPa] (thesis §8.3).
+
+    Linear (``gain_kpa_per_v``), input clipped to its voltage range and output to its
+    pressure range (0.1-10 bar). With ``lag_s`` > 0 the pressure follows the target
+    through an exactly discretised first-order lag; with 0 it is reached at once.
+
+    State: ``pressure_kpa`` (the output), :attr:`target_kpa` (where it is heading) and the
+    command held (a voltage array; a new array is a new command). :meth:`step` advances all
+    three; a caller that computes the target and the lag itself (the compiled muscle step,
+    :class:`pamrun.kernels.CompiledStep`) takes the command with :meth:`hold` and updates
+    ``pressure_kpa`` and ``target_kpa`` in place.
+    """
+
+    def __init__(self, cfg: RegulatorConfig, initial_pressure_kpa: np.ndarray):
+        self.cfg = cfg
+        self.pressure_kpa = np.array(initial_pressure_kpa, dtype=float)
+        self._voltage: np.ndarray | None = None
+        self._target = self.pressure_kpa.copy()
+
+    def reset(self, pressure_kpa: np.ndarray) -> None:
+        """Output at ``pressure_kpa`` [kPa] (a new array) and no command held: the next is new."""
+        self.pressure_kpa = np.array(pressure_kpa, dtype=float)
+        self._voltage = None
+
+    @property
+    def target_kpa(self) -> np.ndarray:
+        """Pressure [kPa] the output is heading to: the held command's, clipped (see :meth:`hold`)."""
+        return self._target
+
+    def target_pressure_kpa(self, voltage_v: np.ndarray) -> np.ndarray:
+        c = self.cfg
+        voltage_v = np.clip(voltage_v, c.min_voltage_v, c.max_voltage_v)
+        return np.clip(c.gain_kpa_per_v * voltage_v, c.min_pressure_kpa, c.max_pressure_kpa)
+
+    def voltage_for_pressure_v(self, pressure_kpa: np.ndarray) -> np.ndarray:
+        """Inverse of the linear map (for experiments that are specified in pressure)."""
+        return np.asarray(pressure_kpa, float) / self.cfg.gain_kpa_per_v
+
+    def lag_factor(self, dt_s: float) -> float:
+        """Share of the gap to the target the pressure closes in dt_s: 1 - exp(-dt_s / lag_s) (0 if no lag)."""
+        lag = self.cfg.lag_s
+        return float(-np.expm1(-dt_s / lag)) if lag > 0 else 0.0
+
+    def hold(self, voltage_v: np.ndarray) -> bool:
+        """Take ``voltage_v`` (the output's shape) [V] as the command, without computing its target.
+
+        Returns whether it is a new command (another array than the one held), whose target
+        the caller then writes into :attr:`target_kpa` in place, as :meth:`step` would
+        compute it.
+        """
+        if voltage_v is self._voltage:
+            return False
+        if np.shape(voltage_v) != self.pressure_kpa.shape:
+            raise ValueError(f"regulator voltages must have shape {self.pressure_kpa.shape}, "
+                             f"got {np.shape(voltage_v)}")
+        self._voltage = voltage_v
+        if not isinstance(self._target, np.ndarray) or self._target.shape != self.pressure_kpa.shape:
+            self._target = np.zeros(self.pressure_kpa.shape)
+        return True
+
+    def step(self, voltage_v: np.ndarray, dt_s: float, contraction_pct: np.ndarray | None = None) -> bool:
+        """Advance by dt_s holding ``voltage_v``; return whether the pressure changed.
+
+        The target is recomputed only when a new voltage array is passed (callers hold
+        one array per command), so an ideal regulator costs nothing per physics step.
+        ``contraction_pct`` is not read: the lag does not depend on the muscles' volume (the
+        flow-limited valve, :class:`pamrun.valve.FlowRegulator`, does).
+        """
+        if voltage_v is not self._voltage:
+            self._voltage = voltage_v
+            self._target = self.target_pressure_kpa(voltage_v)
+            if self.cfg.lag_s == 0:
+                self.pressure_kpa = self._target.copy()
+                return True
+        if self.cfg.lag_s > 0:
+            self.pressure_kpa += (self._target - self.pressure_kpa) * self.lag_factor(dt_s)
+            return True
+        return False
 
 
 class FlowRegulator(Regulator):
