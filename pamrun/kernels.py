@@ -67,19 +67,25 @@ def _clip(x, lo, hi):
 
 
 @njit(cache=True)
+def _set_targets(voltage, params, target):
+    """The regulator's target for every muscle on a new command: clip(gain clip(V)) [kPa]."""
+    vmin, vmax, gain = params[P_VMIN], params[P_VMAX], params[P_GAIN]
+    pmin, pmax = params[P_PMIN], params[P_PMAX]
+    for k in range(target.shape[0]):
+        for s in range(2):
+            target[k, s] = _clip(gain * _clip(voltage[k, s], vmin, vmax), pmin, pmax)
+
+
+@njit(cache=True)
 def _regulate(voltage, new_voltage, lag_factor, params, target, pressure):
     """:meth:`pamrun.muscle.Regulator.step` for every muscle: target = clip(gain clip(V)) [kPa]
     on a new command, then the first-order lag. Returns whether the pressures changed."""
     n = pressure.shape[0]
     changed = False
     if new_voltage:
-        vmin, vmax, gain = params[P_VMIN], params[P_VMAX], params[P_GAIN]
-        pmin, pmax = params[P_PMIN], params[P_PMAX]
-        for k in range(n):
-            for s in range(2):
-                target[k, s] = _clip(gain * _clip(voltage[k, s], vmin, vmax), pmin, pmax)
-                if params[P_LAG] == 0:
-                    pressure[k, s] = target[k, s]
+        _set_targets(voltage, params, target)
+        if params[P_LAG] == 0:
+            pressure[:, :] = target
         changed = params[P_LAG] == 0
     if params[P_LAG] > 0:
         for k in range(n):
@@ -107,11 +113,7 @@ def _regulate_flow(voltage, new_voltage, lag_factor, params, joint, contraction,
     and exhaust at full opening; the reservoir. ``contraction``: the last step's [%]. Returns True."""
     n = pressure.shape[0]
     if new_voltage:
-        vmin, vmax, gain = params[P_VMIN], params[P_VMAX], params[P_GAIN]
-        pmin, pmax = params[P_PMIN], params[P_PMAX]
-        for k in range(n):
-            for s in range(2):
-                target[k, s] = _clip(gain * _clip(voltage[k, s], vmin, vmax), pmin, pmax)
+        _set_targets(voltage, params, target)
     dt, b, supply = params[P_DT], params[P_CRITICAL], reservoir[0]
     flow, up = KPA_L_PER_NL * params[P_CONDUCTANCE], supply + ATMOSPHERE_KPA
     share = lag_factor if params[P_LAG] > 0 else 1.0
