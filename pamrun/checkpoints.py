@@ -344,7 +344,22 @@ def load_last(ckpt_dir: Path, learner, buffer) -> dict:
     if record is not None and len(buffer) != record["length"]:
         raise CheckpointError(folder, f"replay buffer holds {len(buffer)} transitions, "
                                       f"the checkpoint {record['length']}")
+    check_reward_terms(buffer, folder)
     return counters
+
+
+def check_reward_terms(buffer, folder: Path) -> None:
+    """The replay buffer's transitions carry one unweighted feature per reward term of this
+    pamrun (``pamrun.env.REWARD_KEYS``): a run saved before a term was added fails here, naming
+    the buffer, rather than mid-training."""
+    from pamrun.curriculum import FEATURES
+    from pamrun.env import REWARD_KEYS
+
+    stored = buffer.storage[0].get(("next", FEATURES), None) if len(buffer) else None
+    if stored is not None and stored.shape[-1] != len(REWARD_KEYS):
+        raise CheckpointError(folder, f"replay buffer stores {stored.shape[-1]} reward terms, this pamrun has "
+                                      f"{len(REWARD_KEYS)} ({', '.join(REWARD_KEYS)}): the run was saved by an "
+                                      "earlier pamrun and cannot be resumed; start a new run")
 
 
 def rng_states() -> dict:

@@ -46,10 +46,11 @@ policy can be told. ``info["target_speed_m_s"]`` holds the episode's v*.
 
 ## Reward (thesis Table 9.3, config group ``reward``)
 r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf - kda sum((a_prev - a_prev2)^2)
-- kfall [fell] - kstop n_stop / n + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip - kair air, with Vx the torso's forward velocity, y its lateral
+- kfall [fell] - kstop n_stop / n + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip - kair air
+- kstep sum_touchdowns (s - L*)^2 / L*, with Vx the torso's forward velocity, y its lateral
 deviation, z - z0 its height change since reset, a_prev the action applied in this step (the
 "previous action" of the next observation) and a_prev2 the one before it (zero at reset).
-The last six terms are not the thesis' (their weights are 0 by default): ``kda`` penalises
+The last seven terms are not the thesis' (their weights are 0 by default): ``kda`` penalises
 changes of the command, for the smoother gait the thesis asked for; ``kfall`` is paid once,
 on the step that ends the episode by a fall; ``kstop`` penalises the share n_stop / n of the
 hip and ankle joints, and of the knees of legs whose foot is off the ground, within 2 deg of a
@@ -61,14 +62,19 @@ which the foot is on the ground at both ends, summed over the feet (:mod:`pamrun
 slip, per step; a foot is on the ground above its ``CONTACT_WEIGHT_SHARE`` of the weight);
 ``kair`` penalises the supply air the muscles draw in the step [normal litres]
 (:func:`pamrun.muscle.air_nl`'s rule: a muscle draws while its P V grows; also
-``info["air_nl"]``).
+``info["air_nl"]``); ``kstep`` penalises each step whose length s misses ``env.step_length_m``
+(L*): in a control step in which a foot touches down (it is on the ground and was not at the
+step before), (s - L*)^2 / L* [m], with s its sole centre's forward distance ahead of the other
+foot's (:mod:`pamrun.gait`'s touchdown and step length, per step). Convex in s, it costs a limp
+more than even steps of the same stride (0.2 and 0.6 m: 0.2 m; 0.4 and 0.4 m: 0), and it costs
+many short steps (0.15 m at 6.4 steps/s: 1.0 m per second) more than fewer long ones.
 
 Every term is a weight times an unweighted feature, and this is the formula's one home
 (:meth:`PamWalkerEnv.reward_features`, :data:`REWARD_KEYS`, MyoSuite's style): the features are
 Vx, -y^2, -(z - z0)^2, -sum(a_prev^2), Ts / Tf, -sum((a_prev - a_prev2)^2), -[fell],
--n_stop / n, exp(-((Vx - v*) / sigma)^2), -slip and -air, all 0 in a step whose physics blew up. ``info["reward_terms"]`` holds the weighted terms under the key of
+-n_stop / n, exp(-((Vx - v*) / sigma)^2), -slip, -air and -sum (s - L*)^2 / L*, all 0 in a step whose physics blew up. ``info["reward_terms"]`` holds the weighted terms under the key of
 their weight (``kvx``: forward, ``ky``: lateral, ``kz``: height, ``kv``: effort, ``kt``: alive,
-``kda``: command change, ``kfall``: fall, ``kstop``: joint stops, ``kspeed``: speed, ``kslip``: slip, ``kair``: air), so a term and the ``reward.<key>`` that scales it
+``kda``: command change, ``kfall``: fall, ``kstop``: joint stops, ``kspeed``: speed, ``kslip``: slip, ``kair``: air, ``kstep``: steps), so a term and the ``reward.<key>`` that scales it
 share one name; ``info["reward_unweighted"]`` holds the features in ``REWARD_KEYS`` order and
 ``env.reward_weights`` the weights, so a learner can re-weight any term after the fact
 (pamrun's training stores the features in its replay buffer: :mod:`pamrun.curriculum`).
@@ -225,7 +231,7 @@ class PamWalkerEnv(gym.Env):
         self.drive = MuscleDrive(self.muscle_cfg, self.body_cfg)
 
         m = self.model
-        self._qpos_idx, self._qvel_idx = body_mod.joint_addresses(m)
+        self.qpos_idx, self.qvel_idx = body_mod.joint_addresses(m)  # the hinges in qpos, qvel (JOINTS order)
         self._torso_id = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body_mod.TORSO)
         self._sole_ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"{side}_contact_{end}_{edge}")
                           for side in body_mod.SIDES for end in ("front", "back") for edge in ("left", "right")]
@@ -249,13 +255,13 @@ class PamWalkerEnv(gym.Env):
         self.observation_structure = observation_structure(self.n_actions, self.speed_command)
         self.target_speed_m_s = self.env_cfg.target_speed_m_s  # v*, this episode's (env.speed_range_m_s)
         self._prev_action = np.zeros(self.n_actions)
-        self._joint_angles = operator.itemgetter(*self._qpos_idx.tolist())  # from qpos as a list
+        self._joint_angles = operator.itemgetter(*self.qpos_idx.tolist())  # from qpos as a list
         margin = math.radians(STOP_MARGIN_DEG)
         self._stops_rad = joint_limits_rad(self.body_cfg) + [margin, -margin]  # 'at a stop' below / above these
         # (qpos address, lower, upper) of each hip and ankle joint, and of each knee with its foot's
         # column in foot_forces_n (right, left), as Python floats: read every step
         limits = [(int(adr), float(lo), float(hi), name) for adr, (lo, hi), name in
-                  zip(self._qpos_idx, self._stops_rad, body_mod.JOINTS)]
+                  zip(self.qpos_idx, self._stops_rad, body_mod.JOINTS)]
         self._stop_checks = [(adr, lo, hi) for adr, lo, hi, name in limits if "knee" not in name]
         self._knee_checks = [(adr, lo, hi, body_mod.SIDES.index(name.split("_")[0]))
                              for adr, lo, hi, name in limits if "knee" in name]
@@ -264,8 +270,9 @@ class PamWalkerEnv(gym.Env):
         self.air_meter = AirMeter(mc.nominal_length_m, MUSCLE_INNER_DIAMETER_M[mc.size],
                                   [getattr(mc.count, j) for _ in body_mod.SIDES for j in LEG_JOINTS])
         self._gas, self._air_nl = None, 0.0  # the muscles' gas P V [kPa l] after the last step, this step's air
-        self._soles, self._contact, self._slip = None, [False, False], 0.0  # last step's feet, this step's slip
-        self._joint_velocities = operator.itemgetter(*self._qvel_idx.tolist())
+        self._soles, self._contact = None, [False, False]  # the feet's spheres and ground contact after the last step
+        self._slip, self._step = 0.0, 0.0  # this step's slip [m/s] and steps' miss [m] (kslip's and kstep's features)
+        self._joint_velocities = operator.itemgetter(*self.qvel_idx.tolist())
         self._steps = 0
         self._x0 = 0.0
         cfg = self.env_cfg
@@ -286,10 +293,10 @@ class PamWalkerEnv(gym.Env):
         self.model.actuator_biasprm[:] = 0.0  # the last episode's linearised muscles (MuscleDrive.apply)
         d.qpos[:] = self._qpos0
         if cfg.reset_noise_rad > 0:
-            d.qpos[self._qpos_idx] += self.np_random.uniform(-cfg.reset_noise_rad, cfg.reset_noise_rad, N_JOINTS)
+            d.qpos[self.qpos_idx] += self.np_random.uniform(-cfg.reset_noise_rad, cfg.reset_noise_rad, N_JOINTS)
         if cfg.reset_velocity_noise > 0:
             noise = cfg.reset_velocity_noise
-            d.qvel[self._qvel_idx] = self.np_random.uniform(-noise, noise, N_JOINTS)
+            d.qvel[self.qvel_idx] = self.np_random.uniform(-noise, noise, N_JOINTS)
         d.xfrc_applied[:] = 0.0
         mujoco.mj_forward(self.model, d)
         self.drive.reset()
@@ -299,7 +306,7 @@ class PamWalkerEnv(gym.Env):
         self._steps = 0
         self._x0 = float(d.qpos[0])
         feet, state = self.foot_forces_n(), self._state()
-        self._update_slip(feet)
+        self._update_feet(feet)
         self._update_air()
         info = self._info(False, feet, self._fell(state), state)
         info["reward_terms"] = dict.fromkeys(REWARD_KEYS, 0.0)  # as after a step, so info's keys never change
@@ -315,7 +322,7 @@ class PamWalkerEnv(gym.Env):
         drive.set_action(action)
         if self._push_steps:
             d.xfrc_applied[self._torso_id, :3] = self._push_force_n if self._steps + 1 in self._push_steps else 0.0
-        drive.advance(m, d, self._qpos_idx, self._qvel_idx, dt, self.n_muscle_steps, nstep)  # apply, mj_step, ...
+        drive.advance(m, d, self.qpos_idx, self.qvel_idx, dt, self.n_muscle_steps, nstep)  # apply, mj_step, ...
         self._steps += 1
         previous, self._prev_action = self._prev_action, action
 
@@ -324,7 +331,7 @@ class PamWalkerEnv(gym.Env):
         unstable = sum(_unstable_counts(d.warning.number.tolist()))
         physics_error = unstable > 0 or not _all_finite(state[0], state[1])
         feet = self.foot_forces_n()
-        self._update_slip(feet)
+        self._update_feet(feet)
         self._update_air()
         obs = self._observation(feet, state)
         if physics_error:
@@ -397,16 +404,18 @@ class PamWalkerEnv(gym.Env):
                 -self.stop_share(state[0]),
                 math.exp(-(((vx - self.target_speed_m_s) / cfg.speed_sigma_m_s) ** 2)),
                 -self._slip,
-                -self._air_nl]
+                -self._air_nl,
+                -self._step]
 
     def stop_share(self, qpos: list[float]) -> float:
         """Share of the hip and ankle joints, and of the knees of legs whose foot is off the ground
         (after the step), within gait.STOP_MARGIN_DEG of a stop (``kstop``'s term; a knee in
         stance rests on its extension stop by design: its lock)."""
-        n = sum(not lo < qpos[adr] < hi for adr, lo, hi in self._stop_checks)
-        swinging = [(adr, lo, hi) for adr, lo, hi, foot in self._knee_checks if not self._contact[foot]]
-        n += sum(not lo < qpos[adr] < hi for adr, lo, hi in swinging)
-        return n / (len(self._stop_checks) + len(swinging))
+        n, joints = sum(not lo < qpos[adr] < hi for adr, lo, hi in self._stop_checks), len(self._stop_checks)
+        for adr, lo, hi, foot in self._knee_checks:
+            if not self._contact[foot]:
+                n, joints = n + (not lo < qpos[adr] < hi), joints + 1
+        return n / joints
 
     def _update_air(self) -> None:
         """This step's supply air [normal litres] (``kair``'s feature, ``info["air_nl"]``): the
@@ -416,19 +425,23 @@ class PamWalkerEnv(gym.Env):
         self._air_nl = 0.0 if self._gas is None or self._steps == 0 else self.air_meter.drawn_nl(self._gas, gas)
         self._gas = gas
 
-    def _update_slip(self, foot_force_n: np.ndarray) -> None:
-        """This step's slip (``kslip``'s feature, module docstring) from the feet's ground points
-        then and now, and the feet on the ground now (for the next step and ``stop_share``)."""
+    def _update_feet(self, foot_force_n: np.ndarray) -> None:
+        """This step's slip and steps (``kslip``'s and ``kstep``'s features, module docstring) from
+        the feet's ground points then and now, and the feet on the ground now (for the next step
+        and ``stop_share``)."""
         soles = self.data.geom_xpos[self._sole_ids].reshape(2, -1, 3)  # fancy indexing: a copy
         contact = [f > self.contact_n for f in foot_force_n.tolist()]
-        slip = 0.0
+        slip = step = 0.0
         if self._soles is not None and self._steps > 0:
             for foot in (0, 1):
                 if contact[foot] and self._contact[foot]:
                     lowest = int(np.argmin(self._soles[foot, :, 2]))
                     dx, dy = (soles[foot, lowest, :2] - self._soles[foot, lowest, :2]).tolist()
                     slip += math.hypot(dx, dy) / self.env_cfg.control_dt_s
-        self._soles, self._contact, self._slip = soles, contact, slip
+                elif contact[foot]:  # a touchdown; s as gait.step_table: between the sole centres
+                    s = float(soles[foot, :, 0].mean() - soles[1 - foot, :, 0].mean())
+                    step += (s - self.env_cfg.step_length_m) ** 2 / self.env_cfg.step_length_m
+        self._soles, self._contact, self._slip, self._step = soles, contact, slip, step
 
     def _reward(self, action: np.ndarray, physics_error: bool, state: _State | None = None,
                 previous: np.ndarray | None = None, fell: bool = False) -> tuple[float, dict[str, float], list[float]]:
@@ -452,8 +465,8 @@ class PamWalkerEnv(gym.Env):
             "pressure_kpa": self.drive.pressure_kpa.copy(),
             "contraction_pct": self.drive.contraction_pct.copy(),
             "foot_force_n": foot_force_n,
-            "sole_xyz_m": self._soles,  # (2, 4, 3), this step's (_update_slip)
-            "joint_torque_nm": self.data.qfrc_actuator[self._qvel_idx],
+            "sole_xyz_m": self._soles,  # (2, 4, 3), this step's (_update_feet)
+            "joint_torque_nm": self.data.qfrc_actuator[self.qvel_idx],
             "fell": bool(fell),
             "physics_error": np.bool_(physics_error),  # numpy: TorchRL's info reader needs a dtype
             "target_speed_m_s": np.float64(self.target_speed_m_s),  # v*, this episode's

@@ -4,7 +4,9 @@ perturbations, drawn per episode.
 Each episode, with probability ``train.randomize_prob``, the robot and task carry
 ``train.randomize_count`` distinct perturbations named in ``train.randomize`` (defined in
 ``eval.perturbations``, the suite's own: mass, friction, regulator lag, top pressure,
-observation and start noise, pushes), drawn uniformly, each at its own strength s drawn
+observation and start noise, pushes), drawn uniformly or, with ``train.randomize_weights``, in
+proportion to their weights (1 for a name it leaves out; drawn without replacement, so a name
+of weight w among n of weight 1 comes first with chance w / (w + n)), each at its own strength s drawn
 uniformly in [0, ``train.randomize_reach``] of the way from the run's own config to it
 (:func:`pamrun.rollout.perturb`: a factor f becomes 1 + s (f - 1); s > 1 goes beyond the
 suite's size, for a margin). Factors compose (mass x1.1 and x0.9 both drawn: their product);
@@ -22,6 +24,7 @@ from __future__ import annotations
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 
 from pamrun.config import Config, flatten
 from pamrun.env import PamWalkerEnv
@@ -36,15 +39,24 @@ class RandomizedWalker(gym.Env):
     metadata = PamWalkerEnv.metadata
 
     def __init__(self, kwargs: dict[str, dict], perturbations: dict[str, Any], prob: float, reach: float,
-                 count: int = 1):
+                 count: int = 1, weights: dict[str, float] | None = None):
         self.kwargs, self.perturbations, self.prob, self.reach, self.count = kwargs, perturbations, prob, reach, count
         self.names = sorted(perturbations)
+        w = np.array([(weights or {}).get(n, 1.0) for n in self.names])
+        self.p = w / w.sum() if weights else None  # draw probabilities in names order (None: uniform)
         self.nominal = self.env = PamWalkerEnv(**kwargs)
         nominal = self.nominal  # its validated sections, reused for the sections a draw leaves alone
         self.typed = {"body": nominal.body_cfg, "muscle": nominal.muscle_cfg, "reward": nominal.reward_cfg,
                       "env": nominal.env_cfg}
         self.action_space, self.observation_space = self.env.action_space, self.env.observation_space
         self.drawn: tuple[tuple[str, float], ...] = ()  # this episode's perturbations and strengths
+
+    @classmethod
+    def from_config(cls, kwargs: dict[str, dict], cfg: Config) -> RandomizedWalker:
+        """The env ``cfg.train``'s randomisation settings describe, around the env keyword arguments ``kwargs``."""
+        t = cfg.train
+        return cls(kwargs, {n: cfg.eval.perturbations[n] for n in t.randomize}, t.randomize_prob, t.randomize_reach,
+                   t.randomize_count, t.randomize_weights)
 
     def draw(self) -> dict[str, dict]:
         """This episode's env keyword arguments (and ``self.drawn``)."""
@@ -53,7 +65,9 @@ class RandomizedWalker(gym.Env):
         if not self.names or rng.random() >= self.prob:
             return self.kwargs
         kwargs, taken = self.kwargs, set()
-        for k in rng.permutation(len(self.names)).tolist():
+        n = len(self.names)
+        order = rng.permutation(n) if self.p is None else rng.choice(n, size=n, replace=False, p=self.p)
+        for k in order.tolist():
             name = self.names[k]
             sets = set(flatten(self.perturbations[name].values))
             if len(self.drawn) == self.count or sets & taken:

@@ -154,7 +154,7 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
     regulator, drive = env.drive.pairs.regulator, env.drive
     command = regulator.target_pressure_kpa(drive.voltage_v)
     steps = {k: [] for k in STEP_KEYS}
-    qpos, qvel = env._qpos_idx, env._qvel_idx
+    qpos, qvel = env.qpos_idx, env.qvel_idx
     total, change, max_y, fell, physics_error = 0.0, 0.0, 0.0, False, False
     if frame_sink:
         frame_sink(env.render())

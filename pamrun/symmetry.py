@@ -66,7 +66,7 @@ def observation_map(n_actions: int, speed_command: bool = False) -> tuple[np.nda
 def mirror_state(qpos: np.ndarray, qvel: np.ndarray, qpos_idx: np.ndarray, qvel_idx: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
     """A MuJoCo state (free-joint torso, then the hinges at ``qpos_idx``/``qvel_idx`` in JOINTS
-    order) reflected in the x-z plane."""
+    order) reflected in the x-z plane (other hinges, body.toe's toes, stay as they are)."""
     j_index, j_sign = joint_map()
     q, v = np.array(qpos, float), np.array(qvel, float)
     q[1] = -q[1]

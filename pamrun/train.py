@@ -51,9 +51,8 @@ def make_env(cfg: Config, seed: int | None = None):
     from pamrun.env import REWARD_KEYS
 
     kwargs, t = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}, cfg.train
-    perturbations = {n: cfg.eval.perturbations[n] for n in t.randomize}
-    env = GymWrapper(randomize.RandomizedWalker(kwargs, perturbations, t.randomize_prob, t.randomize_reach, t.randomize_count)
-                     if t.randomize else gym.make("pamrun/PamWalker-v0", **kwargs))
+    env = GymWrapper(randomize.RandomizedWalker.from_config(kwargs, cfg) if t.randomize
+                     else gym.make("pamrun/PamWalker-v0", **kwargs))
     spec = {"distance": Unbounded((), dtype=torch.float64), "physics_error": Unbounded((), dtype=torch.bool),
             FEATURES: Unbounded((len(REWARD_KEYS),), dtype=torch.float64)}  # what the env's info holds
     env.set_info_dict_reader(default_info_dict_reader(list(spec), spec=spec))

@@ -29,8 +29,10 @@ def header_table(cfg: Config, out: Path):
         ("reward", ", ".join(f"{k} {w:g}" for k, w in asdict(cfg.reward).items())  # every weight
                    + (f"; kvx {t.walk_kvx:g} once it stands (train.walk_kvx)" if t.walk_kvx is not None else "")
                    + "".join(f"; {k} {w:g} once it stands" for k, w in t.walk_weights.items())),
-        ("randomised", (f"{t.randomize_prob:.0%} of episodes, {t.randomize_count} of: {', '.join(t.randomize)} "
-                        f"(strength 0-{t.randomize_reach:g})"
+        ("randomised", (f"{t.randomize_prob:.0%} of episodes, {t.randomize_count} of: "
+                        + ", ".join(n + (f" x{t.randomize_weights[n]:g}" if n in t.randomize_weights else "")
+                                    for n in t.randomize)
+                        + f" (strength 0-{t.randomize_reach:g})"
                         if t.randomize else "no")),
         ("budget", f"{t.max_frames} frames / {t.max_episodes} episodes"
                    + (f" / {t.max_minutes:g} min" if t.max_minutes else "")

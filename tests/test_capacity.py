@@ -161,12 +161,12 @@ def test_linearised_actuation_matches_the_muscle_torque():
     m, d, drive = env.model, env.data, env.drive
     drive.set_action(np.linspace(-0.8, 0.8, 10))
     for _ in range(20):  # let the regulator lag settle a little, then freeze it
-        drive.apply(m, d, env._qpos_idx, env._qvel_idx, 0.005)
-    drive.apply(m, d, env._qpos_idx, env._qvel_idx, 0.005)
-    d.qpos[env._qpos_idx] += np.deg2rad(0.3)  # a later physics step, 0.3 deg on
-    d.qvel[env._qvel_idx] = 0.2
+        drive.apply(m, d, env.qpos_idx, env.qvel_idx, 0.005)
+    drive.apply(m, d, env.qpos_idx, env.qvel_idx, 0.005)
+    d.qpos[env.qpos_idx] += np.deg2rad(0.3)  # a later physics step, 0.3 deg on
+    d.qvel[env.qvel_idx] = 0.2
     mujoco.mj_forward(m, d)
-    own = drive.torques_nm(d.qpos[env._qpos_idx], d.qvel[env._qvel_idx], 0.0)
+    own = drive.torques_nm(d.qpos[env.qpos_idx], d.qvel[env.qvel_idx], 0.0)
     np.testing.assert_allclose(d.actuator_force, own, rtol=2e-3, atol=0.05)
     assert np.abs(own).max() > 50
 

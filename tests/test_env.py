@@ -50,8 +50,8 @@ def test_observation_layout_matches_state(env):
     np.testing.assert_allclose(obs[2:5], [roll, pitch, yaw], atol=1e-6)
     np.testing.assert_allclose(obs[5:8], d.qvel[0:3], atol=1e-5)
     np.testing.assert_allclose(obs[8:11], d.qvel[3:6], atol=1e-5)
-    np.testing.assert_allclose(obs[11:21], d.qpos[u._qpos_idx], atol=1e-6)
-    np.testing.assert_allclose(obs[21:31], d.qvel[u._qvel_idx], atol=1e-4)
+    np.testing.assert_allclose(obs[11:21], d.qpos[u.qpos_idx], atol=1e-6)
+    np.testing.assert_allclose(obs[21:31], d.qvel[u.qvel_idx], atol=1e-4)
     np.testing.assert_allclose(obs[31:33], u.foot_forces_n() / u.weight_n, atol=1e-5)
     # The touch sensors agree with MuJoCo's contact forces summed per foot.
     contact = np.zeros(2)
@@ -64,7 +64,7 @@ def test_observation_layout_matches_state(env):
     np.testing.assert_allclose(u.foot_forces_n(), contact, rtol=0.2, atol=5.0)
     np.testing.assert_allclose(obs[33:43], 0.3, atol=1e-6)
     # Joint order is the documented one.
-    names = [u.model.joint(int(j)).name for j in u.model.dof_jntid[u._qvel_idx]]
+    names = [u.model.joint(int(j)).name for j in u.model.dof_jntid[u.qvel_idx]]
     assert names == list(JOINTS)
     # The named blocks are exactly these slices, in order, covering the whole observation.
     structure = u.observation_structure

@@ -248,3 +248,27 @@ def test_git_commit_says_when_the_code_is_not_the_commit(tmp_path):
     assert git_commit(tmp_path) == head
     (tmp_path / "a.py").write_text("x = 2\n")
     assert git_commit(tmp_path) == head + "-dirty"
+
+
+@pytest.mark.parametrize("missing", [1, 0])
+def test_a_buffer_from_an_earlier_reward_is_named_not_trained_on(tmp_path, missing):
+    """A replay buffer written when pamrun had fewer reward terms (reward.kstep came later) fails
+    on resume naming its folder; one with every term loads."""
+    from tensordict import TensorDict
+    from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+
+    from pamrun.checkpoints import CheckpointError, check_reward_terms
+    from pamrun.curriculum import FEATURES
+    from pamrun.env import REWARD_KEYS
+
+    width = len(REWARD_KEYS) - missing
+    saved = TensorDictReplayBuffer(storage=LazyTensorStorage(10))
+    saved.extend(TensorDict({"next": {FEATURES: torch.zeros(4, width, dtype=torch.float64)}}, batch_size=[4]))
+    saved.dumps(tmp_path / "buffer")
+    loaded = TensorDictReplayBuffer(storage=LazyTensorStorage(10))
+    loaded.loads(tmp_path / "buffer")
+    if missing:
+        with pytest.raises(CheckpointError, match=f"buffer.*stores {width} reward terms.*has {len(REWARD_KEYS)}"):
+            check_reward_terms(loaded, tmp_path / "buffer")
+    else:
+        check_reward_terms(loaded, tmp_path / "buffer")

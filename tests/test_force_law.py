@@ -152,7 +152,7 @@ def test_compiled_kernel_gives_the_numpy_forces_with_tondu_lopez():
     assert isinstance(law, TonduLopez) and isinstance(fast.drive.pairs.law, TonduLopez)
     np.testing.assert_array_equal(fast.drive.coupling.compiled.law, law.coefficients)
     rng = np.random.default_rng(5)
-    lo, hi = ref.model.jnt_range[ref.model.dof_jntid[ref._qvel_idx]].T
+    lo, hi = ref.model.jnt_range[ref.model.dof_jntid[ref.qvel_idx]].T
     lowest, highest, most = np.inf, -np.inf, -np.inf
     for k in range(40):
         if k % 4 == 0:
@@ -160,8 +160,8 @@ def test_compiled_kernel_gives_the_numpy_forces_with_tondu_lopez():
         angle = rng.uniform(lo - 0.05, hi + 0.05)
         for e in (fast, ref):
             e.drive.set_voltages(voltage)
-            e.data.qpos[e._qpos_idx] = angle
-            e.drive.apply(e.model, e.data, e._qpos_idx, e._qvel_idx, 0.005)
+            e.data.qpos[e.qpos_idx] = angle
+            e.drive.apply(e.model, e.data, e.qpos_idx, e.qvel_idx, 0.005)
         forces = [np.maximum(law.force_and_slope(coef, e.drive.contraction_pct)[0], 0.0)
                   for coef, e in ((fast.drive.coupling.compiled.coef, fast), (ref.drive.coupling.coef, ref))]
         np.testing.assert_allclose(forces[0], forces[1], rtol=1e-12, atol=1e-9, err_msg=f"forces, step {k}")

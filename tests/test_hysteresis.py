@@ -161,18 +161,18 @@ def test_compiled_kernel_matches_numpy_with_hysteresis(regulator):
                "pressure": lambda e: e.drive.pressure_kpa, "contraction": lambda e: e.drive.contraction_pct,
                "slip": lambda e: e.drive.coupling.hysteresis.slip_m, "gain": lambda e: e.drive.coupling.hysteresis.gain}
     rng = np.random.default_rng(7)
-    lo, hi = ref.model.jnt_range[ref.model.dof_jntid[ref._qvel_idx]].T
+    lo, hi = ref.model.jnt_range[ref.model.dof_jntid[ref.qvel_idx]].T
     slipping, sticking = 0, 0
     for k in range(80):
         if k % 4 == 0:
             voltage = rng.uniform(-2.0, 12.0, (10, 2))
-        near = ref.data.qpos[ref._qpos_idx] + rng.normal(0, 0.01, 10)  # small moves: elements stick
+        near = ref.data.qpos[ref.qpos_idx] + rng.normal(0, 0.01, 10)  # small moves: elements stick
         angle = rng.uniform(lo - 0.05, hi + 0.05) if k % 3 == 0 else near
         dt = 0.0 if k % 7 == 3 else 0.005
         for e in (fast, ref):
             e.drive.set_voltages(voltage)
-            e.data.qpos[e._qpos_idx] = angle
-            e.drive.apply(e.model, e.data, e._qpos_idx, e._qvel_idx, dt)
+            e.data.qpos[e.qpos_idx] = angle
+            e.drive.apply(e.model, e.data, e.qpos_idx, e.qvel_idx, dt)
         for name, get in outputs.items():
             np.testing.assert_allclose(get(fast), get(ref), rtol=1e-12, atol=1e-9, err_msg=f"{name}, step {k}")
         h = ref.drive.coupling.hysteresis

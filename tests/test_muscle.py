@@ -195,7 +195,7 @@ def test_compiled_muscle_step_matches_numpy_step_by_step(lag_s):
                "pressure": lambda e: e.drive.pressure_kpa, "contraction": lambda e: e.drive.contraction_pct,
                "regulator": lambda e: e.drive.pairs.regulator.pressure_kpa}
     rng = np.random.default_rng(3)
-    lo, hi = ref.model.jnt_range[ref.model.dof_jntid[ref._qvel_idx]].T
+    lo, hi = ref.model.jnt_range[ref.model.dof_jntid[ref.qvel_idx]].T
     slack, lowest, highest = 0, np.inf, -np.inf
     for k in range(60):
         if k % 4 == 0:  # a new command every fourth step, held in between
@@ -204,8 +204,8 @@ def test_compiled_muscle_step_matches_numpy_step_by_step(lag_s):
         dt = 0.0 if k % 7 == 3 else 0.005
         for e in (fast, ref):
             e.drive.set_voltages(voltage)
-            e.data.qpos[e._qpos_idx] = angle
-            e.drive.apply(e.model, e.data, e._qpos_idx, e._qvel_idx, dt)
+            e.data.qpos[e.qpos_idx] = angle
+            e.drive.apply(e.model, e.data, e.qpos_idx, e.qvel_idx, dt)
         for name, get in outputs.items():
             np.testing.assert_allclose(get(fast), get(ref), rtol=1e-12, atol=1e-9, err_msg=f"{name}, step {k}")
         velocity = rng.uniform(-2, 2, 10)

@@ -76,6 +76,31 @@ def test_a_perturbed_episode_combines_distinct_perturbations(cfg):
         to_object(compose_config("train.randomize_count=0"))
 
 
+def test_weights_draw_a_perturbation_more_often(cfg):
+    """train.randomize_weights: a name of weight 20 among three comes first with chance 20/22
+    (the uniform draw's 1/3); names it leaves out keep weight 1; the same seed, the same draws."""
+    from pamrun.randomize import RandomizedWalker
+
+    names = ["mass_heavy", "friction_low", "lag_x2"]
+    kwargs = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}
+
+    def draws(weights):
+        env = RandomizedWalker(kwargs, {n: cfg.eval.perturbations[n] for n in names}, 1.0, 1.0, 1, weights)
+        env.reset(seed=7)
+        out = [(env.draw(), env.drawn[0][0])[1] for _ in range(200)]
+        env.close()
+        return out
+
+    weighted = draws({"friction_low": 20.0})
+    assert weighted.count("friction_low") / 200 > 0.8  # expected 0.91; Binomial(200, 0.91) <= 160: ~1e-5
+    assert {"mass_heavy", "lag_x2"} <= set(weighted) and weighted == draws({"friction_low": 20.0})
+    assert draws({}).count("friction_low") / 200 < 0.5  # uniform: 1/3
+    for override, key in (("push_forward=2", "randomize_weights.push_forward"),
+                          ("friction_low=0", "randomize_weights.friction_low")):
+        with pytest.raises(ConfigError, match=key):
+            to_object(compose_config("train.randomize=[friction_low]", f"+train.randomize_weights.{override}"))
+
+
 def test_randomize_names_are_checked_with_the_config():
     with pytest.raises(ConfigError, match="train.randomize"):
         to_object(compose_config("train.randomize=[mass_heavy,nope]"))
@@ -99,13 +124,13 @@ def test_stop_and_speed_terms():
     assert info["reward_terms"]["kspeed"] == pytest.approx(3.0 * f["kspeed"])
     q = env.data.qpos.tolist()
     limits = env._stops_rad
-    for j, adr in enumerate(env._qpos_idx):
+    for j, adr in enumerate(env.qpos_idx):
         q[adr] = limits[j, 1] + 0.01  # every joint past its upper stop margin
     assert env.stop_share(q) == 1.0
     knee = next(j for j, name in enumerate(JOINTS) if "knee" in name)
-    q[env._qpos_idx[knee]] = 0.5 * (limits[knee, 0] + limits[knee, 1])
+    q[env.qpos_idx[knee]] = 0.5 * (limits[knee, 0] + limits[knee, 1])
     assert env.stop_share(q) == 1.0  # a knee in stance does not count
-    q[env._qpos_idx[0]] = 0.5 * (limits[0, 0] + limits[0, 1])
+    q[env.qpos_idx[0]] = 0.5 * (limits[0, 0] + limits[0, 1])
     assert env.stop_share(q) == pytest.approx(7 / 8)
     env._contact = [True, False]  # the left foot off the ground: its knee counts
     assert env.stop_share(q) == pytest.approx(8 / 9)
@@ -154,6 +179,39 @@ def test_slip_term_is_the_stance_feet_speed():
     assert np.median(slips) == pytest.approx(0.8, rel=0.25)
     assert info["reward_terms"]["kslip"] == pytest.approx(2.0 * -slips[-1])
     assert PamWalkerEnv().reward_weights[REWARD_KEYS.index("kslip")] == 0.0
+    env.close()
+
+
+def test_step_term_charges_each_touchdown_its_miss_of_the_step_length():
+    """kstep's feature is minus (s - L*)^2 / L* summed over the feet that touch down in the step,
+    with s and the touchdowns as pamrun.gait finds them in the same episode's info (one
+    definition), and 0 in every other step; L* is env.step_length_m."""
+    from pamrun import gait
+
+    env = PamWalkerEnv(reward={"kstep": 2.0}, env={"step_length_m": 0.3})
+    _, info = env.reset(seed=3)
+    rows = {"t_s": [0.0], "foot_force_n": [info["foot_force_n"]], "sole_xyz_m": [info["sole_xyz_m"]]}
+    features, terms = [0.0], [0.0]
+    for k in range(60):  # open loop: the hips swing in antiphase, the swinging knee bends, until it falls
+        phase, a = math.sin(2 * math.pi * 1.5 * k * 0.025), np.zeros(10)
+        a[[0, 5, 2, 7]] = 0.4 * phase, -0.4 * phase, 0.8 * max(phase, 0), 0.8 * max(-phase, 0)
+        _, _, fell, _, info = env.step(a)
+        for key, value in (("t_s", (k + 1) * 0.025), ("foot_force_n", info["foot_force_n"]),
+                           ("sole_xyz_m", info["sole_xyz_m"])):
+            rows[key].append(value)
+        features.append(dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kstep"])
+        terms.append(info["reward_terms"]["kstep"])
+        if fell:
+            break
+    table = gait.step_table(rows, np.asarray(rows["foot_force_n"]) > env.contact_n)
+    expected = np.zeros(len(features))
+    for row, _, length, _ in table:
+        expected[row] -= (length - 0.3) ** 2 / 0.3
+    assert len(table) >= 4 and np.count_nonzero(expected) >= 4
+    np.testing.assert_allclose(features, expected, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(terms, 2.0 * np.asarray(features), rtol=1e-12)
+    with pytest.raises(ConfigError, match="step_length_m"):
+        PamWalkerEnv(env={"step_length_m": 0.0})
     env.close()
 
 

@@ -30,7 +30,7 @@ def test_mirrored_commands_from_a_mirrored_state_give_mirrored_observations(comm
     b.reset(seed=3)
     a.data.qvel[1], a.data.qvel[3] = 0.2, 0.3  # sideways and rolling: nothing symmetric by accident
     mujoco.mj_forward(a.model, a.data)
-    b.data.qpos[:], b.data.qvel[:] = mirror_state(a.data.qpos, a.data.qvel, a._qpos_idx, a._qvel_idx)
+    b.data.qpos[:], b.data.qvel[:] = mirror_state(a.data.qpos, a.data.qvel, a.qpos_idx, a.qvel_idx)
     mujoco.mj_forward(b.model, b.data)
     o_index, o_sign = observation_map(a.n_actions)
     a_index, a_sign = action_map(a.n_actions)

@@ -211,8 +211,8 @@ def test_env_steps_with_the_toe_and_its_spaces_do_not_change():
     assert obs.shape == (43,) and env.action_space.shape == (10,)
     assert env.observation_space.shape == PamWalkerEnv().observation_space.shape
     toe_qpos = {env.model.joint(n).qposadr[0] for n in body.TOE_JOINTS}
-    assert not toe_qpos & set(env._qpos_idx.tolist())
-    np.testing.assert_array_equal(obs[11:21], env.data.qpos[env._qpos_idx].astype(np.float32))
+    assert not toe_qpos & set(env.qpos_idx.tolist())
+    np.testing.assert_array_equal(obs[11:21], env.data.qpos[env.qpos_idx].astype(np.float32))
     obs, _, _, _, info = env.step(env.action_space.sample())
     assert obs.shape == (43,) and np.isfinite(obs).all() and not info["physics_error"]
     front = [env.model.geom(f"right_contact_front_{edge}").id for edge in ("left", "right")]

@@ -219,7 +219,7 @@ def test_compiled_valve_matches_numpy_step_by_step(regulator):
                "reservoir": lambda e: e.drive.pairs.regulator.reservoir_kpa,
                "contraction": lambda e: e.drive.contraction_pct}
     rng = np.random.default_rng(5)
-    lo, hi = ref.model.jnt_range[ref.model.dof_jntid[ref._qvel_idx]].T
+    lo, hi = ref.model.jnt_range[ref.model.dof_jntid[ref.qvel_idx]].T
     pressures = []
     for k in range(80):
         if k % 16 == 0:  # a new command every 80 ms, held in between
@@ -228,8 +228,8 @@ def test_compiled_valve_matches_numpy_step_by_step(regulator):
         dt = 0.0 if k % 7 == 3 else 0.005
         for e in (fast, ref):
             e.drive.set_voltages(voltage)
-            e.data.qpos[e._qpos_idx] = angle
-            e.drive.apply(e.model, e.data, e._qpos_idx, e._qvel_idx, dt)
+            e.data.qpos[e.qpos_idx] = angle
+            e.drive.apply(e.model, e.data, e.qpos_idx, e.qvel_idx, dt)
         for name, get in outputs.items():
             np.testing.assert_allclose(get(fast), get(ref), rtol=1e-12, atol=1e-9, err_msg=f"{name}, step {k}")
         pressures.append(ref.drive.pairs.regulator.pressure_kpa.copy())

@@ -100,6 +100,8 @@ class TrainConfig:
     randomize_prob: float = 0.5  # share of episodes with a perturbation
     randomize_reach: float = 1.0  # strength drawn uniformly in [0, this]; > 1 goes beyond the suite's sizes
     randomize_count: int = 1  # perturbations combined in a perturbed episode (two that set one value: not both)
+    # Relative draw weights of names in randomize (others 1), e.g. {friction_low: 3}; {} = uniform
+    randomize_weights: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for name in ("max_episodes", "max_frames", "avg_window", "keep_saved", "workers", "frames_per_batch",
@@ -128,3 +130,8 @@ class TrainConfig:
         _require(0 <= self.randomize_prob <= 1, "randomize_prob", f"must lie in [0, 1], got {self.randomize_prob}")
         _require(self.randomize_reach >= 0 and math.isfinite(self.randomize_reach), "randomize_reach",
                  f"must be a finite strength >= 0, got {self.randomize_reach}")
+        for name, weight in self.randomize_weights.items():
+            _require(name in self.randomize, f"randomize_weights.{name}",
+                     f"not a name in train.randomize ({', '.join(self.randomize) or 'empty'})")
+            _require(weight > 0 and math.isfinite(weight), f"randomize_weights.{name}",
+                     f"must be a finite weight > 0 (leave a name out of train.randomize instead), got {weight}")

@@ -16,7 +16,8 @@ class RewardConfig:
 
     r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf
           - kda sum((a_prev - a_prev2)^2) - kfall [fell] - kstop n_stop / n
-          + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip - kair air   (the last six: 0 in the thesis)
+          + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip - kair air - kstep steps
+          (the last seven: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -31,9 +32,10 @@ class RewardConfig:
     kspeed: float = 0.0  # weight of the speed tracking exp(-((Vx - env.target_speed_m_s) / env.speed_sigma_m_s)^2)
     kslip: float = 0.0  # weight of the feet's slip: summed horizontal speed [m/s] of the feet in stance
     kair: float = 0.0  # weight of the supply air the muscles draw in a control step [normal litres]
+    kstep: float = 0.0  # weight of the steps' miss, sum over touchdowns of (s - env.step_length_m)^2 / env.step_length_m [m]
 
     def __post_init__(self) -> None:
-        for name in ("kvx", "ky", "kz", "kv", "kt", "kda", "kfall", "kstop", "kspeed", "kslip", "kair"):
+        for name in ("kvx", "ky", "kz", "kv", "kt", "kda", "kfall", "kstop", "kspeed", "kslip", "kair", "kstep"):
             _require(math.isfinite(getattr(self, name)), name, "must be finite")
 
 
@@ -53,6 +55,9 @@ class EnvConfig:
     max_tilt_rad: float = math.pi / 4  # |roll|, |pitch|, |yaw| limit (example's check)
     target_speed_m_s: float = 1.0  # v*: the speed reward.kspeed pays most for (the thesis' agents walked 0.6-1.1 m/s)
     speed_sigma_m_s: float = 0.5  # sigma: how fast reward.kspeed's pay falls off around v*
+    # L*: the step length reward.kstep asks for (pamrun's choice: 2.5 steps/s at 1 m/s; the
+    # first walker took 0.15 m steps at 6.4 steps/s)
+    step_length_m: float = 0.4
     speed_command: bool = False  # the observation ends with v*, the commanded speed [m/s]: the policy is told it
     # [low, high]: v* drawn uniformly per episode (to train a commanded speed; needs speed_command);
     # [] = v* is target_speed_m_s (pamrun eval eval.speed_m_s=V sets it)
@@ -66,7 +71,8 @@ class EnvConfig:
     push_duration_s: float = 0.1  # how long it lasts [s], rounded to whole control steps (at least one)
 
     def __post_init__(self) -> None:
-        _positive(self, "control_dt_s", "episode_s", "physics_dt_s", "max_lateral_m", "max_tilt_rad", "speed_sigma_m_s")
+        _positive(self, "control_dt_s", "episode_s", "physics_dt_s", "max_lateral_m", "max_tilt_rad", "speed_sigma_m_s",
+                  "step_length_m")
         _non_negative(self, "reset_noise_rad", "reset_velocity_noise", "observation_noise_std", "push_time_s")
         _positive(self, "push_duration_s")
         _require(math.isfinite(self.target_speed_m_s), "target_speed_m_s", "must be finite")
