@@ -26,6 +26,9 @@ Definitions (the manual of :func:`episode_metrics`):
 * **symmetry index** of a quantity: |L - R| / ((|L| + |R|) / 2) of its mean over the left
   foot's and the right foot's steps (0 = symmetric; left 0.3 s, right 0.5 s gives 0.5; 2 when
   the signs differ, e.g. one foot always landing behind the other).
+* **hop share**: the share of the touchdowns that come within ``HOP_WINDOW_S`` of a touchdown
+  of the other foot (both feet landing together: a hop or bound, not a step; a walk's
+  footfalls alternate, 0; two-footed hopping, 1).
 * **duty factor**: the share of the rows in which a foot is in contact, averaged over both
   feet (over the whole episode: standing still is 1).
 * **stop share** of a joint: the share of the rows in which its angle lies within
@@ -72,6 +75,7 @@ GAIT_METRICS = (
     "stride_length_m",
     "step_time_symmetry",
     "step_length_symmetry",
+    "hop_share",
     "duty_factor",
     *(f"stop_share_{joint}" for joint in JOINTS),
     "stop_share_max",
@@ -82,6 +86,7 @@ GAIT_METRICS = (
     "air_nl",
     "air_nl_per_m",
 )
+HOP_WINDOW_S = 0.05  # two feet touching down this close together land as one (two control steps)
 # A foot carrying less than this share of the body weight is taken as off the ground.
 CONTACT_WEIGHT_SHARE = 0.05
 
@@ -165,6 +170,19 @@ def step_table(steps: dict, contact: np.ndarray) -> list[tuple[int, int, float, 
         out.append((row, foot, float(length), float(time)))
         last[foot] = row
     return out
+
+
+def hop_share(steps: dict, contact: np.ndarray) -> float:
+    """Share of the touchdowns within ``HOP_WINDOW_S`` of a touchdown of the other foot (NaN
+    without touchdowns)."""
+    t = np.asarray(steps["t_s"], float)
+    times = [t[rows] for rows in touchdowns(contact)]
+    if not sum(map(len, times)):
+        return math.nan
+    gaps = [np.abs(own[:, None] - other[None, :]).min(axis=1, initial=np.inf)  # to the other foot's nearest
+            for own, other in ((times[0], times[1]), (times[1], times[0]))]
+    together = sum(int(np.count_nonzero(gap <= HOP_WINDOW_S + 1e-9)) for gap in gaps)
+    return together / sum(map(len, times))
 
 
 def symmetry_index(right: float, left: float) -> float:
@@ -255,6 +273,7 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
                                     for d in np.diff(feet_x[rows, foot])])
     out["step_time_symmetry"] = symmetry_index(*(_mean([s[3] for s in per_foot[f]]) for f in (RIGHT, LEFT)))
     out["step_length_symmetry"] = symmetry_index(*(_mean([s[2] for s in per_foot[f]]) for f in (RIGHT, LEFT)))
+    out["hop_share"] = hop_share(steps, contact)
     out["duty_factor"] = float(contact.mean())
 
     shares = stop_shares(steps["joint_angle_rad"], spec)

@@ -122,6 +122,21 @@ def test_a_gallop_is_maximally_asymmetric_in_step_length():
     assert m["stride_length_m"] == pytest.approx(0.04)
 
 
+def test_hop_share_tells_hops_from_steps():
+    """Feet landing in the same row or one row apart (25 ms) are a hop; three rows (75 ms) or half
+    a stride apart, steps; hops in alternate 40-row blocks: the touchdowns in those blocks."""
+    assert episode_metrics(walk(200, 40, 20, 24, 0.4, 0.4), spec())["hop_share"] == 0.0
+    assert episode_metrics(walk(200, 40, 0, 24, 0.0, 0.0), spec())["hop_share"] == 1.0
+    # one row apart: 8 of 9 (the left's touchdown at row 1 has no partner: the right starts down)
+    assert episode_metrics(walk(200, 40, 1, 24, 0.0, 0.0), spec())["hop_share"] == pytest.approx(8 / 9)
+    assert episode_metrics(walk(200, 40, 3, 24, 0.0, 0.0), spec())["hop_share"] == 0.0  # 75 ms apart
+    n, i = 160, np.arange(160)
+    down = np.stack([i % 20 < 8, np.where(i // 40 % 2 == 0, i % 20, (i - 10) % 20) < 8], axis=1)
+    m = episode_metrics(still(n, foot_force_n=np.where(down, 300.0, 0.0)), spec())
+    assert m["hop_share"] == pytest.approx(6 / 14)  # together at rows 20, 80 and 100 (both feet)
+    assert math.isnan(episode_metrics(still(20), spec())["hop_share"])  # no touchdown
+
+
 def test_touchdowns_are_rising_edges_only():
     force = np.array([[300, 0], [300, 0], [0, 300], [300, 300], [300, 0], [0, 0], [300, 300]], float)
     down = contacts({"foot_force_n": force}, spec(contact_threshold_n=10.0))
