@@ -2,6 +2,7 @@
 
     python benchmarks/time_to_walk.py [--preset walk] [--seeds 0 1] [--minutes 120] [-- extra overrides]
     python benchmarks/time_to_walk.py --runs outputs/.../run_a outputs/.../run_b   # read finished runs
+    python benchmarks/time_to_walk.py --runs ... --figure curves.png --no-record     # their curves only
 
 Each seed is one ``pamrun train experiment=<preset> seed=<s> train.max_minutes=<minutes>``, one
 after the other (a run uses the machine's cores). Its ``evals.csv`` (the evaluations during
@@ -21,7 +22,9 @@ starts walking; the row gives its frames as ``walk_kvx_from_frames``).
 The milestones and ``best_*`` come from the seeds the run selects its agents on (biased
 upward for the agent they chose). What the row claims about the agent itself comes from
 ``held_out``: the run's ``best_eval.pt`` under ``pamrun eval``'s defaults, 50 episodes on
-the held-out seeds (1000-1049), with the walk-test passes and their 95 % Wilson interval.
+the held-out seeds (1000-1049), with the walk-test passes and their 95 % Wilson interval,
+and the gait's means (``GAIT``: speed, pressure change, hop share, symmetry, stops, slip, air).
+``--figure`` draws the runs' evaluations during training against wall-clock minutes.
 
 It prints one row per seed and the median over seeds (a milestone not reached counts as
 not reached, never as the budget), and appends one JSON line per seed to
@@ -41,6 +44,9 @@ import time
 from pathlib import Path
 
 RESULTS = Path(__file__).parent / "results" / "time_to_walk.jsonl"
+# The held-out gait the row records beside the walk test (means over the 50 episodes)
+GAIT = ("speed_mean", "pressure_change_mean", "hop_share_mean", "step_time_symmetry_mean",
+        "step_length_symmetry_mean", "stop_share_gait_max_mean", "foot_slip_m_s_mean", "air_nl_per_m_mean")
 
 
 def milestones(run: Path) -> dict:
@@ -88,7 +94,7 @@ def held_out_evaluation(run: Path) -> dict | None:
     agg = aggregate(episodes, cfg.eval)
     return {"seeds": [cfg.eval.seed, cfg.eval.seed + cfg.eval.episodes - 1], "held_out": held_out(agents, cfg),
             **{k: agg[k] for k in ("episodes", "walk_passes", "walk_pass_rate", "walk_pass_ci_low",
-                                   "walk_pass_ci_high", "stand_rate", "distance_mean", "distance_std")}}
+                                   "walk_pass_ci_high", "stand_rate", "distance_mean", "distance_std", *GAIT)}}
 
 
 def train(preset: str, seed: int, minutes: float, extra: list[str], root: Path) -> Path:
@@ -99,6 +105,36 @@ def train(preset: str, seed: int, minutes: float, extra: list[str], root: Path) 
     with (root / f"{preset}-seed{seed}.log").open("w") as log:
         subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, check=False)
     return run
+
+
+def figure(runs: list[Path], png: Path) -> Path:
+    """Each run's evaluations during training against wall-clock minutes: the walk-test pass rate
+    on its 10 selection episodes, and the mean pressure change per control step."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from pamrun.rundir import read_evals
+
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    for run in runs:
+        rows = read_evals(run)
+        minutes = [float(r["wall_time_s"]) / 60 for r in rows]
+        top.plot(minutes, [float(r["walk_pass_rate"]) for r in rows], ".-", label=Path(run).name)
+        bottom.plot(minutes, [float(r["pressure_change_mean"]) for r in rows], ".-", label=Path(run).name)
+    top.set_ylabel("walk-test pass rate\n(10 selection episodes)")
+    bottom.set_ylabel("pressure change (kPa/step)")
+    bottom.axhline(50, color="k", lw=0.8, ls=":", label="issue 21's target: 50")
+    bottom.set_xlabel("wall-clock minutes")
+    top.set_title("Evaluations during training")
+    for ax in (top, bottom):
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    return png
 
 
 def fmt(seconds: float | None, frames: int | None) -> str:
@@ -115,6 +151,8 @@ def main() -> None:
     parser.add_argument("--device", default=f"{os.cpu_count()}-core CPU ({platform.machine()})",
                         help="what the runs ran on, for the record")
     parser.add_argument("--note", default="", help="a label stored with each row (e.g. 'recipe search')")
+    parser.add_argument("--figure", type=Path, help="draw the runs' evaluation curves into this PNG")
+    parser.add_argument("--no-record", action="store_true", help="with --runs and --figure: only the figure")
     parser.add_argument("extra", nargs="*", help="more overrides for pamrun train (after --)")
     args = parser.parse_args()
     if args.runs:
@@ -122,6 +160,10 @@ def main() -> None:
     else:
         args.root.mkdir(parents=True, exist_ok=True)
         runs = [train(args.preset, s, args.minutes, args.extra, args.root) for s in args.seeds]
+    if args.figure:
+        print(f"wrote {figure(runs, args.figure)}")
+        if args.no_record:
+            return
     results = [milestones(r) for r in runs]
     stamp = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "device": args.device, "cpu_count": os.cpu_count(),
              "note": args.note}
