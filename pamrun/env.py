@@ -13,6 +13,9 @@ pitch, hip roll, knee, ankle pitch, ankle roll). The pair of that joint gets
 V1 = V0 + dV a, V2 = V0 - dV a (§9.5; default V0 = dV = 3 V, i.e. 0.1-6 bar; thesis
 2.12 +- 0.71 V). ``muscle.command=independent``: ``Box(-1, 1, (20,), float32)``, one value
 per muscle, V = V0 + dV a, in the order (joint 0 muscle 1, joint 0 muscle 2, joint 1 ...).
+With ``env.action_filter_alpha`` alpha < 1 the command applied is alpha a + (1 - alpha) a_prev,
+a_prev the command applied in the step before (0 at reset): a first-order low-pass that
+shrinks each pressure step by alpha (the observation's previous action is the applied command).
 The action is held for one control step Ts = 0.025 s (``env.control_dt_s``). Within it
 the muscle model steps every ``env.muscle_dt_s`` (5 ms) and MuJoCo every
 ``env.physics_dt_s`` (2.5 ms): between muscle steps MuJoCo applies each pair's torque
@@ -72,9 +75,11 @@ many short steps (0.15 m at 6.4 steps/s: 1.0 m per second) more than fewer long 
 Every term is a weight times an unweighted feature, and this is the formula's one home
 (:meth:`PamWalkerEnv.reward_features`, :data:`REWARD_KEYS`, MyoSuite's style): the features are
 Vx, -y^2, -(z - z0)^2, -sum(a_prev^2), Ts / Tf, -sum((a_prev - a_prev2)^2), -[fell],
--n_stop / n, exp(-((Vx - v*) / sigma)^2), -slip, -air and -sum (s - L*)^2 / L*, all 0 in a step whose physics blew up. ``info["reward_terms"]`` holds the weighted terms under the key of
+-n_stop / n, exp(-((Vx - v*) / sigma)^2), -slip, -air and -sum (s - L*)^2 / L*, all 0 in a step
+whose physics blew up. ``info["reward_terms"]`` holds the weighted terms under the key of
 their weight (``kvx``: forward, ``ky``: lateral, ``kz``: height, ``kv``: effort, ``kt``: alive,
-``kda``: command change, ``kfall``: fall, ``kstop``: joint stops, ``kspeed``: speed, ``kslip``: slip, ``kair``: air, ``kstep``: steps), so a term and the ``reward.<key>`` that scales it
+``kda``: command change, ``kfall``: fall, ``kstop``: joint stops, ``kspeed``: speed, ``kslip``: slip,
+``kair``: air, ``kstep``: steps), so a term and the ``reward.<key>`` that scales it
 share one name; ``info["reward_unweighted"]`` holds the features in ``REWARD_KEYS`` order and
 ``env.reward_weights`` the weights, so a learner can re-weight any term after the fact
 (pamrun's training stores the features in its replay buffer: :mod:`pamrun.curriculum`).
@@ -317,6 +322,9 @@ class PamWalkerEnv(gym.Env):
         # np.clip(action, -1, 1) as two ufuncs (np.clip's Python wrapper costs more than both).
         action = np.maximum(np.asarray(action, dtype=np.float64).reshape(self.n_actions), -1.0)
         np.minimum(action, 1.0, out=action)
+        alpha = self.env_cfg.action_filter_alpha
+        if alpha < 1.0:  # the low-pass (module docstring, "Action space")
+            action = alpha * action + (1.0 - alpha) * self._prev_action
         m, d, drive = self.model, self.data, self.drive
         dt, nstep = self.env_cfg.muscle_dt_s, self.n_physics_per_muscle
         drive.set_action(action)

@@ -106,6 +106,9 @@ def metadata(agent: Agent, file_format: str) -> dict[str, Any]:
         "observation_layout": {name: [s.start, s.stop] for name, s in layout.items()},
         "observation_units": {name: OBSERVATION_UNITS[name] for name in layout},
         "action": action_scaling(as_config(agent.config.get("muscle"), MuscleConfig)),
+        "action_filter": {"alpha": as_config(agent.config.get("env"), EnvConfig).action_filter_alpha,
+                          "rule": "command = alpha * action + (1 - alpha) * previous command (0 at start); "
+                                  "the observation's previous_action is the command"},
         "control_dt_s": as_config(agent.config.get("env"), EnvConfig).control_dt_s,
         "checkpoint": {"path": str(agent.path.resolve()), "label": agent.label,
                        "meta": json.loads(json.dumps(agent.meta, default=str))},

@@ -123,6 +123,34 @@ def test_command_change_and_fall_terms():
     e.close()
 
 
+def test_action_filter_low_passes_the_command():
+    """env.action_filter_alpha = 0.5: the applied command moves half-way to each action (from 0
+    at reset), the observation's previous action and kda see the applied command, the regulator
+    targets its pressures; 1 applies the action as it is."""
+    e = PamWalkerEnv(reward={"kda": 1.0}, env={"action_filter_alpha": 0.5})
+    ref = PamWalkerEnv()
+    structure = e.observation_structure["previous_action"]
+    for env in (e, ref):
+        env.reset(seed=0)
+    ones = np.ones(10, np.float32)
+    obs, _, _, _, info = e.step(ones)
+    assert obs[structure] == pytest.approx(np.full(10, 0.5)) and info["reward_terms"]["kda"] == pytest.approx(-10 * 0.25)
+    obs, _, _, _, info = e.step(ones)
+    assert obs[structure] == pytest.approx(np.full(10, 0.75)) and info["reward_terms"]["kda"] == pytest.approx(-10 * 0.0625)
+    ref.step(np.full(10, 0.5, np.float32))
+    ref.step(np.full(10, 0.75, np.float32))  # the same commands, unfiltered: the same state to float rounding
+    np.testing.assert_allclose(e.data.qpos, ref.data.qpos, atol=1e-9)
+    np.testing.assert_allclose(e.drive.pressure_kpa, ref.drive.pressure_kpa, atol=1e-6)
+    e.reset(seed=0)
+    obs, *_ = e.step(ones)
+    assert obs[structure] == pytest.approx(np.full(10, 0.5))  # reset starts the filter from 0 again
+    for bad in (0.0, 1.5):
+        with pytest.raises(ConfigError, match="action_filter_alpha"):
+            PamWalkerEnv(env={"action_filter_alpha": bad})
+    e.close()
+    ref.close()
+
+
 def test_reward_weights_are_keyword_arguments():
     e = gym.make("pamrun/PamWalker-v0", reward={"kv": 1.0, "kt": 0.0})
     e.reset(seed=0)

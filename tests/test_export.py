@@ -64,6 +64,7 @@ def _check_metadata(meta: dict, path) -> None:
     assert action["gain_kpa_per_v"] == muscle["regulator"]["gain_kpa_per_v"]
     assert action["names"] == list(JOINTS)
     assert meta["control_dt_s"] == agent.config["env"]["control_dt_s"]
+    assert meta["action_filter"]["alpha"] == agent.config["env"].get("action_filter_alpha", 1.0) == 1.0
     assert meta["checkpoint"]["path"] == str(path.resolve())
     assert meta["checkpoint"]["meta"] == {"episode": 12, "reward": 3.5}
     assert meta["pamrun_version"]

@@ -62,6 +62,9 @@ class EnvConfig:
     # [low, high]: v* drawn uniformly per episode (to train a commanded speed; needs speed_command);
     # [] = v* is target_speed_m_s (pamrun eval eval.speed_m_s=V sets it)
     speed_range_m_s: list[float] = field(default_factory=list)
+    # The command applied is alpha a + (1 - alpha) a_prev: a first-order low-pass of the policy's
+    # action a (a_prev the last applied command, 0 at reset), for smaller pressure steps; 1 = off
+    action_filter_alpha: float = 1.0
     reset_noise_rad: float = 0.0  # uniform noise on joint angles at reset
     reset_velocity_noise: float = 0.0  # uniform noise on joint velocities [rad/s]
     # Perturbations (pamrun eval's robustness suite uses them; a user can train under them too):
@@ -76,6 +79,8 @@ class EnvConfig:
         _non_negative(self, "reset_noise_rad", "reset_velocity_noise", "observation_noise_std", "push_time_s")
         _positive(self, "push_duration_s")
         _require(math.isfinite(self.target_speed_m_s), "target_speed_m_s", "must be finite")
+        _require(0 < self.action_filter_alpha <= 1, "action_filter_alpha",
+                 f"must lie in (0, 1] (1 = no filter), got {self.action_filter_alpha}")
         r = list(self.speed_range_m_s)
         _require(not r or (len(r) == 2 and all(math.isfinite(v) for v in r) and 0 <= r[0] <= r[1]), "speed_range_m_s",
                  f"must be [] or [low, high] with 0 <= low <= high in m/s, got {r}")
