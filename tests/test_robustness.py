@@ -33,6 +33,13 @@ def test_wilson_interval_matches_published_values(k, n, low, high):
     assert lo == pytest.approx(low, abs=1e-4) and hi == pytest.approx(high, abs=1e-4)
 
 
+@pytest.mark.parametrize("n", [10, 50, 300])
+def test_the_interval_holds_the_rate_at_all_or_none(n):
+    """At n of n (and 0 of n) the rate is the interval's end exactly, not a rounding outside it."""
+    assert wilson_interval(n, n)[1] == 1.0 and wilson_interval(0, n)[0] == 0.0
+    assert wilson_interval(n, n)[0] < 1.0 and wilson_interval(0, n)[1] > 0.0
+
+
 def test_a_pass_rate_comes_with_its_count_and_interval():
     ep = {"duration_s": 10.0, "fell": False, "max_abs_y_m": 0.1, "distance_m": 8.0, "return": 1.0,
           "speed_m_s": 0.8, "pressure_change_kpa": 1.0}

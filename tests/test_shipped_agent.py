@@ -80,7 +80,7 @@ def test_the_shipped_agent_walks_and_renders(tmp_path):
     (row,) = board["agents"]
     episodes = [json.loads(line) for line in (out / "episodes.jsonl").open()]
     check_walks(episodes, row)
-    assert row["walk_pass_ci_low"] < row["walk_pass_rate"] < row["walk_pass_ci_high"]
+    assert row["walk_pass_ci_low"] < row["walk_pass_rate"] <= row["walk_pass_ci_high"] <= 1.0  # 50/50: rate = high
     assert (out / "best_episode.mp4").stat().st_size > 50_000 and (out / "gait.png").stat().st_size > 0
     assert all(np.isfinite(np.asarray(e["steps"]["pressure_kpa"])).all() for e in episodes)
     assert f"{row['walk_passes']}/50" in proc.stdout
