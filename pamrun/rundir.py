@@ -157,16 +157,19 @@ class EpisodeLog(CsvLog):
         self.best = max(self.rewards, default=-math.inf)
 
     def add(self, episode: dict, q0: float, frames: int, wall_time_s: float) -> dict:
-        """One finished episode: its row (numbered from the run's count) in the CSV and TensorBoard."""
-        self.episodes += 1
-        self.rewards.append(episode["reward"])
-        self.flagged.append(int(episode["physics_error"]))
-        row = {"episode": self.episodes, "frames": frames, "reward": episode["reward"],
-               "avg_reward": self.average(), "q0": q0, "length": episode["length"],
+        """One finished episode: its row (numbered from the run's count) in the CSV and TensorBoard.
+
+        The row is written before the count moves: a signal in between leaves the CSV one row
+        ahead of a final checkpoint (a resume drops it), never behind (a resume could not go on)."""
+        rewards = [*self.rewards, episode["reward"]]
+        row = {"episode": self.episodes + 1, "frames": frames, "reward": episode["reward"],
+               "avg_reward": float(np.mean(rewards[-self.window:])), "q0": q0, "length": episode["length"],
                "distance_m": episode["distance_m"], "wall_time_s": round(wall_time_s, 3),
                "physics_error": int(episode["physics_error"])}
-        self.best = max(self.best, row["reward"])
         self.append(row)
+        self.rewards, self.episodes = rewards, self.episodes + 1
+        self.flagged.append(int(episode["physics_error"]))
+        self.best = max(self.best, row["reward"])
         for key in ("reward", "avg_reward", "q0", "length", "distance_m", "physics_error"):
             self.writer.add_scalar(f"episode/{key}", row[key], self.episodes)
         return row
