@@ -25,7 +25,7 @@ Python per physics step.
 
 ## Observation space
 ``Box(-inf, inf, (33 + n_actions,), float32)``: 43 values (antagonistic) or 53 (independent),
-one more with ``env.speed_command`` (the commanded speed, last).
+one more with ``env.speed_command`` (the commanded speed), two more with a gait clock (last).
 ``env.observation_structure`` names each block as a slice (use it instead of indices):
 
 | index | ``observation_structure`` key | meaning | unit |
@@ -40,6 +40,7 @@ one more with ``env.speed_command`` (the commanded speed, last).
 | 31, 32 | ``foot_force`` | normal ground force under the right, left foot | robot weights (N / (m g)) |
 | 33-42 (33-52) | ``previous_action`` | the previous action (10 or 20 values) | 1 |
 | 43 (53) | ``speed_command`` | v*, the commanded speed (only with ``env.speed_command``) | m/s |
+| last 2 | ``gait_clock`` | sin, cos of 2 pi phi, the gait clock's phase (only with ``env.gait_period_s``) | 1 |
 
 ## Commanded speed
 ``kspeed`` pays for walking near v*. v* is ``env.target_speed_m_s``, or, with
@@ -47,13 +48,27 @@ one more with ``env.speed_command`` (the commanded speed, last).
 that walks at the speed it is told); ``env.speed_command`` appends v* to the observation so the
 policy can be told. ``info["target_speed_m_s"]`` holds the episode's v*.
 
+## Gait clock
+With ``env.gait_period_s`` T > 0 a clock runs: phase phi = phi0 + t / T (mod 1), phi0 drawn
+uniformly per episode at reset (so no phase is tied to the start, and a mirrored transition, whose
+phase is shifted by half a period, is as likely as its original). The right foot's clock is phi, the
+left's phi + 1/2: each foot swings in the first ``env.swing_share`` (sigma) of its period, smoothly,
+with weight s = (1 + tanh((sin 2 pi phi - cos pi sigma) / 0.1)) / 2 (sin 2 pi phi > cos pi sigma for a
+share sigma of the period), and stands on the ground the rest; with sigma < 1/2 both feet are down
+between steps, as in walking. The observation ends with sin 2 pi phi, cos 2 pi phi (the policy's
+clock). ``kgait`` charges each foot's miss of its clock (Siekmann et al., "Sim-to-real learning of
+all common bipedal gaits via periodic reward composition", ICRA 2021): its ground force (as a share
+of the robot's weight, at most 1) while it should swing, and its sole centre's horizontal speed
+(m/s, at most 1) while it should stand: feature -(1/2) sum_feet [s f + (1 - s) u], in [-1, 0]. A
+two-footed hop misses half of each period on one foot; standing still costs the swing shares' force.
+
 ## Reward (thesis Table 9.3, config group ``reward``)
 r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf - kda sum((a_prev - a_prev2)^2)
 - kfall [fell] - kstop n_stop / n + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip - kair air
-- kstep sum_touchdowns (s - L*)^2 / L*, with Vx the torso's forward velocity, y its lateral
+- kstep sum_touchdowns (s - L*)^2 / L* - kgait miss (the gait clock's, above), with Vx the torso's forward velocity, y its lateral
 deviation, z - z0 its height change since reset, a_prev the action applied in this step (the
 "previous action" of the next observation) and a_prev2 the one before it (zero at reset).
-The last seven terms are not the thesis' (their weights are 0 by default): ``kda`` penalises
+The last eight terms are not the thesis' (their weights are 0 by default): ``kda`` penalises
 changes of the command, for the smoother gait the thesis asked for; ``kfall`` is paid once,
 on the step that ends the episode by a fall; ``kstop`` penalises the share n_stop / n of the
 hip and ankle joints, and of the knees of legs whose foot is off the ground, within 2 deg of a
@@ -70,16 +85,17 @@ slip, per step; a foot is on the ground above its ``CONTACT_WEIGHT_SHARE`` of th
 step before), (s - L*)^2 / L* [m], with s its sole centre's forward distance ahead of the other
 foot's (:mod:`pamrun.gait`'s touchdown and step length, per step). Convex in s, it costs a limp
 more than even steps of the same stride (0.2 and 0.6 m: 0.2 m; 0.4 and 0.4 m: 0), and it costs
-many short steps (0.15 m at 6.4 steps/s: 1.0 m per second) more than fewer long ones.
+many short steps (0.15 m at 6.4 steps/s: 1.0 m per second) more than fewer long ones; ``kgait``
+charges the feet's miss of the gait clock (above; it needs ``env.gait_period_s``).
 
 Every term is a weight times an unweighted feature, and this is the formula's one home
 (:meth:`PamWalkerEnv.reward_features`, :data:`REWARD_KEYS`, MyoSuite's style): the features are
 Vx, -y^2, -(z - z0)^2, -sum(a_prev^2), Ts / Tf, -sum((a_prev - a_prev2)^2), -[fell],
--n_stop / n, exp(-((Vx - v*) / sigma)^2), -slip, -air and -sum (s - L*)^2 / L*, all 0 in a step
+-n_stop / n, exp(-((Vx - v*) / sigma)^2), -slip, -air, -sum (s - L*)^2 / L* and the clock's -miss, all 0 in a step
 whose physics blew up. ``info["reward_terms"]`` holds the weighted terms under the key of
 their weight (``kvx``: forward, ``ky``: lateral, ``kz``: height, ``kv``: effort, ``kt``: alive,
 ``kda``: command change, ``kfall``: fall, ``kstop``: joint stops, ``kspeed``: speed, ``kslip``: slip,
-``kair``: air, ``kstep``: steps), so a term and the ``reward.<key>`` that scales it
+``kair``: air, ``kstep``: steps, ``kgait``: gait clock), so a term and the ``reward.<key>`` that scales it
 share one name; ``info["reward_unweighted"]`` holds the features in ``REWARD_KEYS`` order and
 ``env.reward_weights`` the weights, so a learner can re-weight any term after the fact
 (pamrun's training stores the features in its replay buffer: :mod:`pamrun.curriculum`).
@@ -138,17 +154,19 @@ _OBS_BLOCKS = (("torso_y", 1), ("torso_z", 1), ("torso_rpy", 3), ("torso_velocit
 OBSERVATION_UNITS = {
     "torso_y": "m", "torso_z": "m", "torso_rpy": "rad", "torso_velocity": "m/s",
     "torso_angular_velocity": "rad/s", "joint_angle": "rad", "joint_velocity": "rad/s",
-    "foot_force": "robot weights (N / (m g))", "previous_action": "1", "speed_command": "m/s",
+    "foot_force": "robot weights (N / (m g))", "previous_action": "1", "speed_command": "m/s", "gait_clock": "1",
 }
 OBS_BASE = sum(n for _, n in _OBS_BLOCKS)  # 33: observations before the previous action
 OBS_SIZE = OBS_BASE + N_JOINTS  # with the antagonistic command (the default and the thesis)
 
 
-def observation_structure(n_actions: int = N_JOINTS, speed_command: bool = False) -> dict[str, slice]:
+def observation_structure(n_actions: int = N_JOINTS, speed_command: bool = False, gait_clock: bool = False
+                          ) -> dict[str, slice]:
     """Each observation block's slice, for an env taking ``n_actions`` actions (and told the
-    commanded speed, ``env.speed_command``)."""
+    commanded speed, ``env.speed_command``, and the gait clock, ``env.gait_period_s`` > 0)."""
     out, start = {}, 0
-    for name, size in (*_OBS_BLOCKS, ("previous_action", n_actions), ("speed_command", int(speed_command))):
+    for name, size in (*_OBS_BLOCKS, ("previous_action", n_actions), ("speed_command", int(speed_command)),
+                       ("gait_clock", 2 * gait_clock)):
         if not size:
             continue
         out[name] = slice(start, start + size)
@@ -161,8 +179,8 @@ REWARD_KEYS = tuple(RewardConfig.__dataclass_fields__)  # one reward term per we
 
 def space_sizes(muscle: MuscleConfig | dict | None = None, env: EnvConfig | dict | None = None) -> tuple[int, int]:
     """(observations, actions) of the env for this muscle and env config, without building it."""
-    n = n_actions(as_config(muscle, MuscleConfig))
-    return OBS_BASE + n + int(as_config(env, EnvConfig).speed_command), n
+    n, env = n_actions(as_config(muscle, MuscleConfig)), as_config(env, EnvConfig)
+    return OBS_BASE + n + int(env.speed_command) + 2 * (env.gait_period_s > 0), n
 _INSTABILITY_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQPOS,
     mujoco.mjtWarning.mjWARN_BADQVEL,
@@ -193,6 +211,14 @@ def _all_finite(*values: list[float]) -> bool:
     """Every value finite. A finite sum proves it (NaN and inf propagate through a sum); only a
     non-finite sum, which may be overflow, needs the value-by-value check."""
     return math.isfinite(sum(map(sum, values))) or all(math.isfinite(x) for v in values for x in v)
+
+
+def swing_weights(phase: float, swing_share: float) -> tuple[float, float]:
+    """How much the gait clock swings the right and the left foot at this phase (module
+    docstring, "Gait clock"): 1 in swing, 0 in stance, smooth in between."""
+    edge = math.cos(math.pi * swing_share)
+    return tuple(0.5 * (1.0 + math.tanh((math.sin(2 * math.pi * (phase + 0.5 * foot)) - edge) / 0.1))
+                 for foot in (0, 1))
 
 
 def quat_to_euler(quat_wxyz: np.ndarray) -> tuple[float, float, float]:
@@ -255,9 +281,11 @@ class PamWalkerEnv(gym.Env):
         self.n_actions = self.drive.n_actions
         self.action_space = gym.spaces.Box(-1.0, 1.0, (self.n_actions,), np.float32)
         self.speed_command = self.env_cfg.speed_command
-        size = OBS_BASE + self.n_actions + int(self.speed_command)
+        self.gait_clock = self.env_cfg.gait_period_s > 0
+        self._phase0 = 0.0  # the gait clock's phase at reset (drawn per episode)
+        size = OBS_BASE + self.n_actions + int(self.speed_command) + 2 * self.gait_clock
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (size,), np.float32)
-        self.observation_structure = observation_structure(self.n_actions, self.speed_command)
+        self.observation_structure = observation_structure(self.n_actions, self.speed_command, self.gait_clock)
         self.target_speed_m_s = self.env_cfg.target_speed_m_s  # v*, this episode's (env.speed_range_m_s)
         self._prev_action = np.zeros(self.n_actions)
         self._joint_angles = operator.itemgetter(*self.qpos_idx.tolist())  # from qpos as a list
@@ -276,7 +304,8 @@ class PamWalkerEnv(gym.Env):
                                   [getattr(mc.count, j) for _ in body_mod.SIDES for j in LEG_JOINTS])
         self._gas, self._air_nl = None, 0.0  # the muscles' gas P V [kPa l] after the last step, this step's air
         self._soles, self._contact = None, [False, False]  # the feet's spheres and ground contact after the last step
-        self._slip, self._step = 0.0, 0.0  # this step's slip [m/s] and steps' miss [m] (kslip's and kstep's features)
+        # this step's slip [m/s], steps' miss [m] and gait clock's miss (kslip's, kstep's and kgait's features)
+        self._slip, self._step, self._gait = 0.0, 0.0, 0.0
         self._joint_velocities = operator.itemgetter(*self.qvel_idx.tolist())
         self._steps = 0
         self._x0 = 0.0
@@ -307,6 +336,8 @@ class PamWalkerEnv(gym.Env):
         self.drive.reset()
         if cfg.speed_range_m_s:  # after the start noise: a seed's start pose does not depend on it
             self.target_speed_m_s = float(self.np_random.uniform(*cfg.speed_range_m_s))
+        if self.gait_clock:  # after the start noise and v*, for the same reason
+            self._phase0 = float(self.np_random.uniform())
         self._prev_action = np.zeros(self.n_actions)
         self._steps = 0
         self._x0 = float(d.qpos[0])
@@ -396,7 +427,15 @@ class PamWalkerEnv(gym.Env):
             sensed = (np.asarray(sensed) + self.np_random.normal(0.0, self.env_cfg.observation_noise_std, OBS_BASE)).tolist()
         # float64 values rounded once to float32, as np.concatenate(...).astype(np.float32) would
         command = [self.target_speed_m_s] if self.speed_command else []
+        if self.gait_clock:
+            angle = 2 * math.pi * self.gait_phase()
+            command += [math.sin(angle), math.cos(angle)]
         return np.array([*sensed, *self._prev_action.tolist(), *command], dtype=np.float32)
+
+    def gait_phase(self) -> float:
+        """The gait clock's phase phi in [0, 1) now (module docstring, "Gait clock")."""
+        cfg = self.env_cfg
+        return (self._phase0 + self._steps * cfg.control_dt_s / cfg.gait_period_s) % 1.0
 
     def reward_features(self, action: np.ndarray, previous: np.ndarray | None, fell: bool,
                         state: _State | None = None) -> list[float]:
@@ -413,7 +452,8 @@ class PamWalkerEnv(gym.Env):
                 math.exp(-(((vx - self.target_speed_m_s) / cfg.speed_sigma_m_s) ** 2)),
                 -self._slip,
                 -self._air_nl,
-                -self._step]
+                -self._step,
+                -self._gait]
 
     def stop_share(self, qpos: list[float]) -> float:
         """Share of the hip and ankle joints, and of the knees of legs whose foot is off the ground
@@ -434,12 +474,13 @@ class PamWalkerEnv(gym.Env):
         self._gas = gas
 
     def _update_feet(self, foot_force_n: np.ndarray) -> None:
-        """This step's slip and steps (``kslip``'s and ``kstep``'s features, module docstring) from
-        the feet's ground points then and now, and the feet on the ground now (for the next step
-        and ``stop_share``)."""
+        """This step's slip, steps and gait clock's miss (``kslip``'s, ``kstep``'s and ``kgait``'s
+        features, module docstring) from the feet's ground points then and now, and the feet on
+        the ground now (for the next step and ``stop_share``)."""
         soles = self.data.geom_xpos[self._sole_ids].reshape(2, -1, 3)  # fancy indexing: a copy
-        contact = [f > self.contact_n for f in foot_force_n.tolist()]
-        slip = step = 0.0
+        forces = foot_force_n.tolist()
+        contact = [f > self.contact_n for f in forces]
+        slip = step = gait = 0.0
         if self._soles is not None and self._steps > 0:
             for foot in (0, 1):
                 if contact[foot] and self._contact[foot]:
@@ -449,7 +490,12 @@ class PamWalkerEnv(gym.Env):
                 elif contact[foot]:  # a touchdown; s as gait.step_table: between the sole centres
                     s = float(soles[foot, :, 0].mean() - soles[1 - foot, :, 0].mean())
                     step += (s - self.env_cfg.step_length_m) ** 2 / self.env_cfg.step_length_m
-        self._soles, self._contact, self._slip, self._step = soles, contact, slip, step
+            if self.gait_clock:
+                moved = (soles[:, :, :2].mean(axis=1) - self._soles[:, :, :2].mean(axis=1)).tolist()
+                for foot, swing in enumerate(swing_weights(self.gait_phase(), self.env_cfg.swing_share)):
+                    speed = math.hypot(*moved[foot]) / self.env_cfg.control_dt_s
+                    gait += 0.5 * (swing * min(forces[foot] / self.weight_n, 1.0) + (1 - swing) * min(speed, 1.0))
+        self._soles, self._contact, self._slip, self._step, self._gait = soles, contact, slip, step, gait
 
     def _reward(self, action: np.ndarray, physics_error: bool, state: _State | None = None,
                 previous: np.ndarray | None = None, fell: bool = False) -> tuple[float, dict[str, float], list[float]]:

@@ -20,6 +20,8 @@ JSON object with
   (``v0_v``, ``dv_max_v``, ``voltage``), the regulator's ``gain_kpa_per_v`` and the clipping
   that turn them into pressures (``pressure``), and its time constant ``regulator_lag_s``;
   all from the agent's own muscle config, not the command line's;
+* ``action_filter`` and ``gait_clock``: the low-pass the robot applies to the action, and the
+  clock it feeds the policy (``env.action_filter_alpha``, ``env.gait_period_s``; pamrun.env);
 * ``control_dt_s``: the action is held for this long (one control step);
 * ``checkpoint``: the source file, its label and meta (episode, frames, reward, ...);
 * ``pamrun_version``.
@@ -98,7 +100,8 @@ def actor_of(agent: Agent):
 
 def metadata(agent: Agent, file_format: str) -> dict[str, Any]:
     """What the exported file says about its input and output (see the module docstring)."""
-    layout = observation_structure(agent.action_size, as_config(agent.config.get("env"), EnvConfig).speed_command)
+    env = as_config(agent.config.get("env"), EnvConfig)
+    layout = observation_structure(agent.action_size, env.speed_command, env.gait_period_s > 0)
     return {
         "format": file_format,
         "input": "observation", "output": "action",
@@ -106,10 +109,13 @@ def metadata(agent: Agent, file_format: str) -> dict[str, Any]:
         "observation_layout": {name: [s.start, s.stop] for name, s in layout.items()},
         "observation_units": {name: OBSERVATION_UNITS[name] for name in layout},
         "action": action_scaling(as_config(agent.config.get("muscle"), MuscleConfig)),
-        "action_filter": {"alpha": as_config(agent.config.get("env"), EnvConfig).action_filter_alpha,
+        "action_filter": {"alpha": env.action_filter_alpha,
                           "rule": "command = alpha * action + (1 - alpha) * previous command (0 at start); "
                                   "the observation's previous_action is the command"},
-        "control_dt_s": as_config(agent.config.get("env"), EnvConfig).control_dt_s,
+        "gait_clock": {"period_s": env.gait_period_s, "swing_share": env.swing_share,
+                       "rule": "gait_clock = sin, cos of 2 pi phase; phase = phase0 + t / period_s (mod 1), "
+                               "any phase0; period_s 0 = no clock"},
+        "control_dt_s": env.control_dt_s,
         "checkpoint": {"path": str(agent.path.resolve()), "label": agent.label,
                        "meta": json.loads(json.dumps(agent.meta, default=str))},
         "pamrun_version": pamrun_version(),

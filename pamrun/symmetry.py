@@ -10,12 +10,15 @@ joints are the same. Reflecting y -> -y therefore maps
 * the joints: each right-leg joint's angle and velocity become the left leg's, times the
   joint's ``mirror_sign`` product (-1 for roll joints, +1 for pitch joints), and back;
 * the feet's forces: right <-> left;
+* the gait clock (``env.gait_period_s``): the right foot's clock is the left's shifted by half a
+  period, so the mirror image's phase is phi + 1/2: its sine and cosine change sign;
 * the command (``muscle.command``): ``antagonistic`` actions follow their joint (a roll
   joint's action changes sign: its muscle 1 pulls the other way); ``independent`` actions
   (muscle 1 and 2 of each joint in a row) swap legs, and a roll joint's muscle 1 and 2 swap.
 
 The reward is symmetric (its terms depend on y only through y^2, on the joints through
-stop shares), so a transition and its mirror image pay the same: a replay buffer may hold
+stop shares, on the feet through sums over both with the clock shifted), so a transition and its
+mirror image pay the same: a replay buffer may hold
 both (``train.mirror``).
 """
 
@@ -50,16 +53,19 @@ def action_map(n_actions: int) -> tuple[np.ndarray, np.ndarray]:
     return np.stack([muscle1, muscle2], axis=1).reshape(-1), np.ones(2 * n)
 
 
-def observation_map(n_actions: int, speed_command: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def observation_map(n_actions: int, speed_command: bool = False, gait_clock: bool = False
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """The mirror image of an observation o is o[index] * sign (the env's observation table; the
-    commanded speed, last with ``env.speed_command``, is its own mirror image)."""
+    commanded speed, with ``env.speed_command``, is its own mirror image; the gait clock's sine
+    and cosine, last with ``env.gait_period_s``, change sign)."""
     j_index, j_sign = joint_map()
     a_index, a_sign = action_map(n_actions)
     n_torso, n = len(_TORSO_SIGNS), len(JOINTS)
-    command = np.arange(SENSED + n_actions, SENSED + n_actions + int(speed_command))
+    extra = np.arange(SENSED + n_actions, SENSED + n_actions + int(speed_command) + 2 * gait_clock)
     index = np.concatenate([np.arange(n_torso), n_torso + j_index, n_torso + n + j_index,
-                            n_torso + 2 * n + np.array([1, 0]), SENSED + a_index, command])
-    sign = np.concatenate([_TORSO_SIGNS, j_sign, j_sign, [1.0, 1.0], a_sign, [1.0] * speed_command])
+                            n_torso + 2 * n + np.array([1, 0]), SENSED + a_index, extra])
+    sign = np.concatenate([_TORSO_SIGNS, j_sign, j_sign, [1.0, 1.0], a_sign, [1.0] * speed_command,
+                           [-1.0, -1.0] * gait_clock])
     return index, sign.astype(float)
 
 
@@ -77,15 +83,17 @@ def mirror_state(qpos: np.ndarray, qvel: np.ndarray, qpos_idx: np.ndarray, qvel_
     return q, v
 
 
-def mirror_batch(batch):
+def mirror_batch(batch, env=None):
     """A TorchRL batch of transitions reflected: observations, next observations and actions
-    mirrored, everything else (rewards, their terms, done flags, ...) as it is."""
+    mirrored, everything else (rewards, their terms, done flags, ...) as it is. ``env`` (an
+    EnvConfig) says which optional blocks the observation has; None = only the commanded speed,
+    if the observation is one longer than without."""
     import torch
 
     n_actions = batch["action"].shape[-1]
-    speed_command = batch["observation"].shape[-1] > SENSED + n_actions
-
-    o_index, o_sign = (torch.as_tensor(x) for x in observation_map(n_actions, speed_command))
+    speed_command = batch["observation"].shape[-1] > SENSED + n_actions if env is None else env.speed_command
+    gait_clock = env is not None and env.gait_period_s > 0
+    o_index, o_sign = (torch.as_tensor(x) for x in observation_map(n_actions, speed_command, gait_clock))
     a_index, a_sign = (torch.as_tensor(x) for x in action_map(n_actions))
     out = batch.clone()
     for key in ("observation", ("next", "observation")):

@@ -197,7 +197,7 @@ class Run:
         self.frames += batch.numel()
         self.buffer.extend(batch)
         if self.cfg.train.mirror:  # its mirror image too (pamrun/symmetry.py): the same reward, twice the data
-            self.buffer.extend(mirror_batch(batch))
+            self.buffer.extend(mirror_batch(batch, self.cfg.env))
         finished = self.tracker.add(batch)
         q0s = self.learner.q0(torch.stack([e["obs0"] for e in finished])) if finished else []
         for episode, q0 in zip(finished, q0s):

@@ -113,7 +113,7 @@ def test_independent_command_is_one_action_per_muscle(tmp_path):
 def test_units_name_every_observation_block_as_the_env_docs_do():
     import pamrun.env
 
-    assert set(OBSERVATION_UNITS) == set(observation_structure(speed_command=True))
+    assert set(OBSERVATION_UNITS) == set(observation_structure(speed_command=True, gait_clock=True))
     for name, unit in OBSERVATION_UNITS.items():
         row = next(line for line in pamrun.env.__doc__.splitlines() if f"| ``{name}`` |" in line)
         assert row.rstrip(" |").endswith(unit), (name, row)

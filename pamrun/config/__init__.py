@@ -70,6 +70,10 @@ class Config:
         for name in self.train.randomize:
             _require(name in self.eval.perturbations, "train.randomize",
                      f"unknown perturbation {name!r}; known (eval.perturbations): {', '.join(self.eval.perturbations)}")
+        for key, weight in (("reward.kgait", self.reward.kgait), ("train.walk_weights.kgait",
+                                                                  self.train.walk_weights.get("kgait", 0.0))):
+            _require(not weight or self.env.gait_period_s > 0, key,
+                     "needs a gait clock to follow (env.gait_period_s > 0, e.g. 0.8)")
         try:
             check_muscle_stretch(self.muscle, self.body)
         except ConfigError as err:

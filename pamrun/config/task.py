@@ -17,7 +17,7 @@ class RewardConfig:
     r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf
           - kda sum((a_prev - a_prev2)^2) - kfall [fell] - kstop n_stop / n
           + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip - kair air - kstep steps
-          (the last seven: 0 in the thesis)
+          - kgait clock miss (the last eight: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -33,9 +33,12 @@ class RewardConfig:
     kslip: float = 0.0  # weight of the feet's slip: summed horizontal speed [m/s] of the feet in stance
     kair: float = 0.0  # weight of the supply air the muscles draw in a control step [normal litres]
     kstep: float = 0.0  # weight of the steps' miss, sum over touchdowns of (s - env.step_length_m)^2 / env.step_length_m [m]
+    # weight of the feet's miss of the gait clock (needs env.gait_period_s > 0): force on a foot
+    # the clock swings, speed of a foot it stands on (pamrun.env, "Gait clock")
+    kgait: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("kvx", "ky", "kz", "kv", "kt", "kda", "kfall", "kstop", "kspeed", "kslip", "kair", "kstep"):
+        for name in ("kvx", "ky", "kz", "kv", "kt", "kda", "kfall", "kstop", "kspeed", "kslip", "kair", "kstep", "kgait"):
             _require(math.isfinite(getattr(self, name)), name, "must be finite")
 
 
@@ -65,6 +68,13 @@ class EnvConfig:
     # The command applied is alpha a + (1 - alpha) a_prev: a first-order low-pass of the policy's
     # action a (a_prev the last applied command, 0 at reset), for smaller pressure steps; 1 = off
     action_filter_alpha: float = 1.0
+    # Gait clock (pamrun.env, "Gait clock"; Siekmann et al., ICRA 2021): a phase that turns once per
+    # stride of this period [s], the right foot's swing in its first swing_share, the left's half a
+    # period later; the observation ends with the phase's sine and cosine, reward.kgait pays for
+    # following it. 0 = no clock. pamrun's choice for the period: 2.5 steps/s, which at
+    # step_length_m (0.4 m) is 1 m/s
+    gait_period_s: float = 0.0
+    swing_share: float = 0.4  # share of the period a foot swings; < 0.5 leaves both feet down between steps
     reset_noise_rad: float = 0.0  # uniform noise on joint angles at reset
     reset_velocity_noise: float = 0.0  # uniform noise on joint velocities [rad/s]
     # Perturbations (pamrun eval's robustness suite uses them; a user can train under them too):
@@ -79,6 +89,8 @@ class EnvConfig:
         _non_negative(self, "reset_noise_rad", "reset_velocity_noise", "observation_noise_std", "push_time_s")
         _positive(self, "push_duration_s")
         _require(math.isfinite(self.target_speed_m_s), "target_speed_m_s", "must be finite")
+        _non_negative(self, "gait_period_s")
+        _require(0 < self.swing_share < 1, "swing_share", f"must lie in (0, 1), got {self.swing_share}")
         _require(0 < self.action_filter_alpha <= 1, "action_filter_alpha",
                  f"must lie in (0, 1] (1 = no filter), got {self.action_filter_alpha}")
         r = list(self.speed_range_m_s)

@@ -1,0 +1,157 @@
+"""The gait clock (env.gait_period_s, reward.kgait): a phase the policy sees, drawn per episode,
+that swings each foot in turn; kgait charges a foot's force while its clock swings it and its
+speed while its clock stands it; the mirror image's clock is half a period on; a run trains with
+it, mirrored, and its export says how to feed the clock."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from pamrun.config import ConfigError, to_object
+from pamrun.env import REWARD_KEYS, PamWalkerEnv, swing_weights
+from pamrun.symmetry import action_map, mirror_state, observation_map
+from tests.conftest import compose_config
+from tests.test_train import TINY, train_here
+
+CLOCK = {"gait_period_s": 0.8, "swing_share": 0.4}
+
+
+def test_the_clock_swings_each_foot_in_turn_for_its_share():
+    """Over a period each foot swings (weight > 1/2) for swing_share of it, the left half a period
+    after the right, and both stand between (sigma < 1/2: double support)."""
+    phases = np.arange(4000) / 4000
+    weights = np.array([swing_weights(p, 0.4) for p in phases])
+    assert np.mean(weights[:, 0] > 0.5) == pytest.approx(0.4, abs=0.002)
+    assert np.mean(weights[:, 1] > 0.5) == pytest.approx(0.4, abs=0.002)
+    assert np.allclose(weights[:2000, 0], weights[2000:, 1])  # the left foot: the right's, half a period on
+    assert np.mean((weights[:, 0] < 0.5) & (weights[:, 1] < 0.5)) == pytest.approx(0.2, abs=0.002)
+    assert not np.any((weights[:, 0] > 0.5) & (weights[:, 1] > 0.5))
+    assert np.mean(np.array([swing_weights(p, 0.25) for p in phases])[:, 0] > 0.5) == pytest.approx(0.25, abs=0.002)
+
+
+def test_the_policy_sees_the_clock_and_each_episode_draws_its_phase():
+    """sin, cos of the phase end the observation; the phase turns by Ts / T a step from a start
+    drawn per seed (reproducible); the start pose is the same as without a clock."""
+    env = PamWalkerEnv(env={**CLOCK, "reset_noise_rad": 0.02})
+    plain = PamWalkerEnv(env={"reset_noise_rad": 0.02})
+    assert env.observation_structure["gait_clock"] == slice(43, 45)
+    assert env.observation_space.shape == (45,)
+    starts = []
+    for seed in range(6):
+        obs, _ = env.reset(seed=seed)
+        plain_obs, _ = plain.reset(seed=seed)
+        assert np.array_equal(obs[:43], plain_obs)
+        starts.append(env.gait_phase())
+        assert obs[43:] == pytest.approx([math.sin(2 * math.pi * starts[-1]), math.cos(2 * math.pi * starts[-1])],
+                                         abs=1e-6)
+    assert len(set(starts)) == 6 and max(starts) - min(starts) > 0.3
+    env.reset(seed=2)
+    assert env.gait_phase() == starts[2]
+    for k in range(1, 5):
+        obs, *_ = env.step(np.zeros(10))
+        phase = (starts[2] + k * 0.025 / 0.8) % 1
+        assert obs[43:] == pytest.approx([math.sin(2 * math.pi * phase), math.cos(2 * math.pi * phase)], abs=1e-6)
+    env.close()
+    plain.close()
+
+
+def test_kgait_charges_force_on_a_swinging_foot_and_nothing_when_both_should_stand():
+    """The robot stands still on both feet: when the clock stands both, kgait's feature is ~0;
+    when it swings one foot fully, the feature is half that foot's share of the weight; in info
+    under kgait, weighted."""
+    env = PamWalkerEnv(env=CLOCK, reward={"kgait": 2.0})
+    env.reset(seed=0)
+    both_stand, one_swings = [], []
+    for _ in range(64):  # two periods
+        _, _, fell, _, info = env.step(np.zeros(10))
+        assert not fell
+        feature = dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"]
+        assert info["reward_terms"]["kgait"] == pytest.approx(2.0 * feature)
+        swing = swing_weights(env.gait_phase(), 0.4)
+        if max(swing) < 0.01:
+            both_stand.append(feature)
+        for foot in (0, 1):
+            if swing[foot] > 0.999:
+                one_swings.append((feature, info["foot_force_n"][foot] / env.weight_n))
+    assert both_stand and one_swings
+    assert max(abs(f) for f in both_stand) < 0.01  # standing still: no speed to charge
+    for feature, share in one_swings:
+        assert share > 0.3  # it stands on both feet
+        assert feature == pytest.approx(-0.5 * min(share, 1.0), abs=0.01)
+    env.close()
+
+
+def test_kgait_charges_a_foot_that_moves_while_its_clock_stands_it():
+    """Drag the right foot forward by moving the whole robot: in a step where both clocks stand,
+    the feature is the feet's mean speed (capped at 1 m/s)."""
+    env = PamWalkerEnv(env=CLOCK)
+    env.reset(seed=0)
+    while max(swing_weights(env.gait_phase() + 0.025 / 0.8, 0.4)) > 0.01:  # to a step in double support
+        env.step(np.zeros(10))
+    env.data.qvel[0] = 0.4  # the torso (and with it the feet) moving forward
+    _, _, _, _, info = env.step(np.zeros(10))
+    feature = dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"]
+    assert -1.0 <= feature < -0.05
+    env.close()
+
+
+def test_the_mirror_image_runs_half_a_period_on():
+    """A robot started in another's mirror image with its clock half a period on, driven by the
+    mirrored commands, sees the mirrored observations (the clock's sin, cos negated) and is paid
+    the same kgait."""
+    a, b = (PamWalkerEnv(env={**CLOCK, "reset_noise_rad": 0.05}, reward={"kgait": 1.0}) for _ in range(2))
+    a.reset(seed=3)
+    b.reset(seed=3)
+    b._phase0 = (a._phase0 + 0.5) % 1
+    a.data.qvel[1] = 0.2
+    mujoco.mj_forward(a.model, a.data)
+    b.data.qpos[:], b.data.qvel[:] = mirror_state(a.data.qpos, a.data.qvel, a.qpos_idx, a.qvel_idx)
+    mujoco.mj_forward(b.model, b.data)
+    o_index, o_sign = observation_map(10, gait_clock=True)
+    a_index, a_sign = action_map(10)
+    assert sorted(o_index) == list(range(45)) and list(o_sign[-2:]) == [-1.0, -1.0]
+    rng = np.random.default_rng(0)
+    for k in range(20):
+        action = rng.uniform(-0.5, 0.5, 10)
+        obs_a, r_a, *_, info_a = a.step(action)
+        obs_b, r_b, *_, info_b = b.step(action[a_index] * a_sign)
+        assert np.max(np.abs(obs_b - obs_a[o_index] * o_sign)) < 1e-3
+        if k:  # the first step's foot speed runs from b's own reset pose, not the mirrored one set after it
+            assert info_b["reward_terms"]["kgait"] == pytest.approx(info_a["reward_terms"]["kgait"], abs=1e-3)
+            assert info_b["reward_terms"]["kgait"] != 0.0
+    a.close()
+    b.close()
+
+
+@pytest.mark.parametrize("override, key", [
+    (["reward.kgait=1"], "reward.kgait"),  # a clock to follow that does not run
+    (["+train.walk_weights.kgait=4"], "train.walk_weights.kgait"),
+    (["env.gait_period_s=0.8", "env.swing_share=1"], "swing_share"),
+    (["env.gait_period_s=-0.8"], "gait_period_s"),
+])
+def test_impossible_gait_clocks_fail_naming_the_key(override, key):
+    with pytest.raises(ConfigError, match=key):
+        to_object(compose_config(*override))
+
+
+def test_a_clocked_agent_trains_mirrored_evaluates_and_exports_its_clock(tmp_path):
+    """A run with the clock (mirrored transitions included) saves agents of 45 inputs; pamrun
+    eval runs them with their clock; the export's metadata names the clock's block and period."""
+    from pamrun.evaluate import load_agents
+    from pamrun.export import metadata
+    from pamrun.rollout import evaluate_agents
+
+    run = tmp_path / "run"
+    assert train_here(run, *TINY, "train.max_frames=400", "train.eval_every_frames=0", "train.mirror=true",
+                      "env.gait_period_s=0.8", "reward.kgait=1") == "max_frames"
+    cfg = to_object(compose_config("eval.episodes=2", "eval.episode_s=1", "eval.walk_duration_s=1"))
+    agents, kwargs, errors = load_agents(str(run / "checkpoints" / "last.pt"), cfg)
+    assert not errors and agents[0].obs_size == 45 and kwargs[0]["env"]["gait_period_s"] == 0.8
+    (episodes,) = evaluate_agents(agents, kwargs, 2, 1000, 1, keep_steps=False)
+    assert len(episodes) == 2 and all(np.isfinite(e["distance_m"]) for e in episodes)
+    meta = metadata(agents[0], "onnx")
+    assert meta["observation_layout"]["gait_clock"] == [43, 45] and meta["gait_clock"]["period_s"] == 0.8
