@@ -1,6 +1,6 @@
 """The gait clock (env.gait_period_s, reward.kgait): a phase the policy sees, drawn per episode,
-that swings each foot in turn; kgait charges a foot's force while its clock swings it and its
-speed while its clock stands it; the mirror image's clock is half a period on; a run trains with
+that swings each foot in turn; kgait pays 1 a step less a foot's force while its clock swings it
+and its speed while its clock stands it; the mirror image's clock is half a period on; a run trains with
 it, mirrored, and its export says how to feed the clock."""
 
 from __future__ import annotations
@@ -55,13 +55,15 @@ def test_the_policy_sees_the_clock_and_each_episode_draws_its_phase():
         obs, *_ = env.step(np.zeros(10))
         phase = (starts[2] + k * 0.025 / 0.8) % 1
         assert obs[43:] == pytest.approx([math.sin(2 * math.pi * phase), math.cos(2 * math.pi * phase)], abs=1e-6)
+    *_, info = plain.step(np.zeros(10))
+    assert dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"] == 0.0  # no clock, nothing to follow
     env.close()
     plain.close()
 
 
 def test_kgait_charges_force_on_a_swinging_foot_and_nothing_when_both_should_stand():
-    """The robot stands still on both feet: when the clock stands both, kgait's feature is ~0;
-    when it swings one foot fully, the feature is half that foot's share of the weight; in info
+    """The robot stands still on both feet: when the clock stands both, kgait's feature is ~1;
+    when it swings one foot fully, it is 1 less half that foot's share of the weight; in info
     under kgait, weighted."""
     env = PamWalkerEnv(env=CLOCK, reward={"kgait": 2.0})
     env.reset(seed=0)
@@ -78,16 +80,16 @@ def test_kgait_charges_force_on_a_swinging_foot_and_nothing_when_both_should_sta
             if swing[foot] > 0.999:
                 one_swings.append((feature, info["foot_force_n"][foot] / env.weight_n))
     assert both_stand and one_swings
-    assert max(abs(f) for f in both_stand) < 0.01  # standing still: no speed to charge
+    assert min(both_stand) > 0.99  # standing still: no speed to charge
     for feature, share in one_swings:
         assert share > 0.3  # it stands on both feet
-        assert feature == pytest.approx(-0.5 * min(share, 1.0), abs=0.01)
+        assert feature == pytest.approx(1 - 0.5 * min(share, 1.0), abs=0.01)
     env.close()
 
 
 def test_kgait_charges_a_foot_that_moves_while_its_clock_stands_it():
-    """Drag the right foot forward by moving the whole robot: in a step where both clocks stand,
-    the feature is the feet's mean speed (capped at 1 m/s)."""
+    """Move the whole robot, feet and all, forward in a step where the clock stands both feet:
+    kgait's feature falls below 1 by the feet's mean speed (each capped at 1 m/s)."""
     env = PamWalkerEnv(env=CLOCK)
     env.reset(seed=0)
     while max(swing_weights(env.gait_phase() + 0.025 / 0.8, 0.4)) > 0.01:  # to a step in double support
@@ -95,7 +97,7 @@ def test_kgait_charges_a_foot_that_moves_while_its_clock_stands_it():
     env.data.qvel[0] = 0.4  # the torso (and with it the feet) moving forward
     _, _, _, _, info = env.step(np.zeros(10))
     feature = dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"]
-    assert -1.0 <= feature < -0.05
+    assert 0.0 <= feature < 0.95
     env.close()
 
 
@@ -122,7 +124,7 @@ def test_the_mirror_image_runs_half_a_period_on():
         assert np.max(np.abs(obs_b - obs_a[o_index] * o_sign)) < 1e-3
         if k:  # the first step's foot speed runs from b's own reset pose, not the mirrored one set after it
             assert info_b["reward_terms"]["kgait"] == pytest.approx(info_a["reward_terms"]["kgait"], abs=1e-3)
-            assert info_b["reward_terms"]["kgait"] != 0.0
+            assert info_b["reward_terms"]["kgait"] < 0.99
     a.close()
     b.close()
 

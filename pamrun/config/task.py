@@ -17,7 +17,7 @@ class RewardConfig:
     r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf
           - kda sum((a_prev - a_prev2)^2) - kfall [fell] - kstop n_stop / n
           + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip - kair air - kstep steps
-          - kgait clock miss (the last eight: 0 in the thesis)
+          + kgait (1 - clock miss) (the last eight: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -33,8 +33,8 @@ class RewardConfig:
     kslip: float = 0.0  # weight of the feet's slip: summed horizontal speed [m/s] of the feet in stance
     kair: float = 0.0  # weight of the supply air the muscles draw in a control step [normal litres]
     kstep: float = 0.0  # weight of the steps' miss, sum over touchdowns of (s - env.step_length_m)^2 / env.step_length_m [m]
-    # weight of the feet's miss of the gait clock (needs env.gait_period_s > 0): force on a foot
-    # the clock swings, speed of a foot it stands on (pamrun.env, "Gait clock")
+    # weight of the feet following the gait clock, 1 - their miss (needs env.gait_period_s > 0):
+    # the miss is force on a foot the clock swings, speed of a foot it stands on (pamrun.env, "Gait clock")
     kgait: float = 0.0
 
     def __post_init__(self) -> None:
