@@ -63,7 +63,7 @@ centre's horizontal speed (m/s, at most 1) while it should stand: feature
 1 - (1/2) sum_feet [s f + (1 - s) u], in [0, 1]. A walk in step with the clock earns 1 a step, a
 two-footed hop about 0.6, standing still about 0.8. The feature is positive, as the alive bonus:
 a clock charged as a penalty (-(1/2) sum ..., tried first) made a fall within a second cheaper
-than a stumbling step, and the pilot fell within 1.6 s for 60,000 frames of its walking stage.
+than a stumbling step: all six evaluations in the 70,000 frames after the pilot stood fell within 1.6 s.
 
 ## Reward (thesis Table 9.3, config group ``reward``)
 r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf - kda sum((a_prev - a_prev2)^2)
