@@ -183,7 +183,12 @@ REWARD_KEYS = tuple(RewardConfig.__dataclass_fields__)  # one reward term per we
 def space_sizes(muscle: MuscleConfig | dict | None = None, env: EnvConfig | dict | None = None) -> tuple[int, int]:
     """(observations, actions) of the env for this muscle and env config, without building it."""
     n, env = n_actions(as_config(muscle, MuscleConfig)), as_config(env, EnvConfig)
-    return OBS_BASE + n + int(env.speed_command) + 2 * (env.gait_period_s > 0), n
+    return _obs_size(observation_structure(n, env.speed_command, env.gait_period_s > 0)), n
+
+
+def _obs_size(structure: dict[str, slice]) -> int:
+    """The observation's length: where its last block ends."""
+    return max(s.stop for s in structure.values())
 _INSTABILITY_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQPOS,
     mujoco.mjtWarning.mjWARN_BADQVEL,
@@ -286,9 +291,9 @@ class PamWalkerEnv(gym.Env):
         self.speed_command = self.env_cfg.speed_command
         self.gait_clock = self.env_cfg.gait_period_s > 0
         self._phase0 = 0.0  # the gait clock's phase at reset (drawn per episode)
-        size = OBS_BASE + self.n_actions + int(self.speed_command) + 2 * self.gait_clock
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (size,), np.float32)
         self.observation_structure = observation_structure(self.n_actions, self.speed_command, self.gait_clock)
+        size = _obs_size(self.observation_structure)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (size,), np.float32)
         self.target_speed_m_s = self.env_cfg.target_speed_m_s  # v*, this episode's (env.speed_range_m_s)
         self._prev_action = np.zeros(self.n_actions)
         self._joint_angles = operator.itemgetter(*self.qpos_idx.tolist())  # from qpos as a list
