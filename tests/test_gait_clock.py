@@ -157,3 +157,20 @@ def test_a_clocked_agent_trains_mirrored_evaluates_and_exports_its_clock(tmp_pat
     assert len(episodes) == 2 and all(np.isfinite(e["distance_m"]) for e in episodes)
     meta = metadata(agents[0], "onnx")
     assert meta["observation_layout"]["gait_clock"] == [43, 45] and meta["gait_clock"]["period_s"] == 0.8
+
+
+def test_kgait_charges_a_foot_off_the_ground_while_its_clock_stands_it():
+    """Hold the robot still a few centimetres above the floor in double support: both feet are
+    still but carry nothing, so each misses its stance fully and kgait's feature is ~0 (a flight
+    phase costs what a run's does)."""
+    env = PamWalkerEnv(env=CLOCK)
+    env.reset(seed=0)
+    while max(swing_weights(env.gait_phase() + 0.025 / 0.8, 0.4)) > 0.01:  # to a step in double support
+        env.step(np.zeros(10))
+    env.data.qpos[2] += 0.05
+    env.data.qvel[:] = 0.0
+    mujoco.mj_forward(env.model, env.data)
+    _, _, _, _, info = env.step(np.zeros(10))
+    assert max(info["foot_force_n"]) < 1.0  # in the air
+    assert dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"] < 0.05
+    env.close()

@@ -34,7 +34,7 @@ class RewardConfig:
     kair: float = 0.0  # weight of the supply air the muscles draw in a control step [normal litres]
     kstep: float = 0.0  # weight of the steps' miss, sum over touchdowns of (s - env.step_length_m)^2 / env.step_length_m [m]
     # weight of the feet following the gait clock, 1 - their miss (needs env.gait_period_s > 0):
-    # the miss is force on a foot the clock swings, speed of a foot it stands on (pamrun.env, "Gait clock")
+    # the miss is force on a foot the clock swings; speed, or want of load, of a foot it stands on (pamrun.env, "Gait clock")
     kgait: float = 0.0
 
     def __post_init__(self) -> None:
