@@ -149,7 +149,7 @@ from pamrun import body as body_mod  # noqa: E402
 from pamrun.actuation import MuscleDrive, joint_limits_rad, n_actions  # noqa: E402
 from pamrun.config import BodyConfig, EnvConfig, MuscleConfig, RewardConfig, to_object  # noqa: E402
 from pamrun.config.robot import LEG_JOINTS, MUSCLE_INNER_DIAMETER_M  # noqa: E402
-from pamrun.gait import CONTACT_WEIGHT_SHARE, STOP_MARGIN_DEG  # noqa: E402
+from pamrun.gait import CONTACT_WEIGHT_SHARE, STOP_MARGIN_DEG, step_length_m  # noqa: E402
 from pamrun.muscle import AirMeter  # noqa: E402
 from pamrun.task import fell as fell_rule  # noqa: E402
 
@@ -499,8 +499,8 @@ class PamWalkerEnv(gym.Env):
                     lowest = int(np.argmin(self._soles[foot, :, 2]))
                     dx, dy = (soles[foot, lowest, :2] - self._soles[foot, lowest, :2]).tolist()
                     slip += math.hypot(dx, dy) / self.env_cfg.control_dt_s
-                elif contact[foot]:  # a touchdown; s as gait.step_table: between the sole centres
-                    s = float(soles[foot, :, 0].mean() - soles[1 - foot, :, 0].mean())
+                elif contact[foot]:  # a touchdown
+                    s = step_length_m(soles, foot)
                     step += (s - self.env_cfg.step_length_m) ** 2 / self.env_cfg.step_length_m
             if self.gait_clock:
                 moved = (soles[:, :, :2].mean(axis=1) - self._soles[:, :, :2].mean(axis=1)).tolist()

@@ -156,16 +156,23 @@ def sole_points(steps: dict) -> np.ndarray:
     return np.asarray(steps["foot_xyz_m"], float).reshape(-1, 2, 1, 3)
 
 
+def step_length_m(soles: np.ndarray, foot: int) -> float:
+    """A step's length [m] as ``foot`` touches down: its sole centre's forward (x) distance ahead
+    of the other foot's; ``soles`` (2, k, 3), each foot's contact points (the one definition:
+    the gait metrics' and reward.kstep's)."""
+    return float(soles[foot, :, 0].mean() - soles[1 - foot, :, 0].mean())
+
+
 def step_table(steps: dict, contact: np.ndarray) -> list[tuple[int, int, float, float]]:
     """Every step as (row, foot, step length [m], step time [s] or NaN), in time order."""
     t = np.asarray(steps["t_s"], float)
-    feet_x = sole_points(steps)[..., 0].mean(axis=2)  # sole centres' x (n, 2)
+    points = sole_points(steps)
     events = sorted((int(row), foot) for foot, rows in enumerate(touchdowns(contact)) for row in rows)
     last = [None, None]  # row of each foot's previous touchdown
     out = []
     for row, foot in events:
         other = 1 - foot
-        length = feet_x[row, foot] - feet_x[row, other]
+        length = step_length_m(points[row], foot)
         time = t[row] - t[last[other]] if last[other] is not None else math.nan
         out.append((row, foot, float(length), float(time)))
         last[foot] = row
