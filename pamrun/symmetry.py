@@ -83,17 +83,15 @@ def mirror_state(qpos: np.ndarray, qvel: np.ndarray, qpos_idx: np.ndarray, qvel_
     return q, v
 
 
-def mirror_batch(batch, env=None):
+def mirror_batch(batch, env):
     """A TorchRL batch of transitions reflected: observations, next observations and actions
-    mirrored, everything else (rewards, their terms, done flags, ...) as it is. ``env`` (an
-    EnvConfig) says which optional blocks the observation has; None = only the commanded speed,
-    if the observation is one longer than without."""
+    mirrored, everything else (rewards, their terms, done flags, ...) as it is. ``env`` (the
+    run's EnvConfig) says which optional blocks the observation has."""
     import torch
 
     n_actions = batch["action"].shape[-1]
-    speed_command = batch["observation"].shape[-1] > SENSED + n_actions if env is None else env.speed_command
-    gait_clock = env is not None and env.gait_period_s > 0
-    o_index, o_sign = (torch.as_tensor(x) for x in observation_map(n_actions, speed_command, gait_clock))
+    o_map = observation_map(n_actions, env.speed_command, env.gait_period_s > 0)
+    o_index, o_sign = (torch.as_tensor(x) for x in o_map)
     a_index, a_sign = (torch.as_tensor(x) for x in action_map(n_actions))
     out = batch.clone()
     for key in ("observation", ("next", "observation")):

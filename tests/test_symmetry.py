@@ -57,11 +57,11 @@ def test_a_mirrored_batch_holds_the_mirror_images(cfg):
     env = make_env(cfg, seed=0)
     batch = env.rollout(30)
     env.close()
-    mirrored = mirror_batch(batch)
+    mirrored = mirror_batch(batch, cfg.env)
     o_index, o_sign = observation_map(10)
     a_index, a_sign = action_map(10)
     assert torch.equal(mirrored["observation"], batch["observation"][:, o_index] * torch.as_tensor(o_sign).float())
     assert torch.equal(mirrored["next", "observation"][:, 0], -batch["next", "observation"][:, 0])  # y
     assert torch.equal(mirrored["action"], batch["action"][:, a_index] * torch.as_tensor(a_sign).float())
     assert torch.equal(mirrored["next", "reward"], batch["next", "reward"])
-    assert torch.equal(mirror_batch(mirrored)["observation"], batch["observation"])
+    assert torch.equal(mirror_batch(mirrored, cfg.env)["observation"], batch["observation"])
