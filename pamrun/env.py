@@ -56,7 +56,10 @@ left's phi + 1/2: each foot swings in the first ``env.swing_share`` (sigma) of i
 with weight s = (1 + tanh((sin 2 pi phi - cos pi sigma) / 0.1)) / 2 (sin 2 pi phi > cos pi sigma for a
 share sigma of the period), and stands on the ground the rest; with sigma < 1/2 both feet are down
 between steps, as in walking. The observation ends with sin 2 pi phi, cos 2 pi phi (the policy's
-clock). ``kgait`` pays for following the clock (Siekmann et al., "Sim-to-real learning of all
+clock). With ``env.gait_follows_speed`` the episode's period and ``kstep``'s step length follow its
+commanded speed v*: T = gait_period_s sqrt(v0 / v*), L* = step_length_m sqrt(v* / v0), v0 =
+2 step_length_m / gait_period_s (:func:`gait_at_speed`), so that v* = 2 L* / T (cadence and step
+length each grow with the square root of speed, as in human walking). ``kgait`` pays for following the clock (Siekmann et al., "Sim-to-real learning of all
 common bipedal gaits via periodic reward composition", ICRA 2021), less each foot's miss: its
 ground force f (as a share of the robot's weight, at most 1) while it should swing, and while it
 should stand the larger of its sole centre's horizontal speed u (m/s, at most 1) and its want of
@@ -233,6 +236,15 @@ def swing_weights(phase: float, swing_share: float) -> tuple[float, float]:
                  for foot in (0, 1))
 
 
+def gait_at_speed(env: EnvConfig, speed_m_s: float) -> tuple[float, float]:
+    """The gait clock's period T [s] and kstep's step length L* [m] at commanded speed v*
+    (``env.gait_follows_speed``; otherwise ``env.gait_period_s``, ``env.step_length_m``)."""
+    if not env.gait_follows_speed:
+        return env.gait_period_s, env.step_length_m
+    ratio = math.sqrt(speed_m_s * env.gait_period_s / (2 * env.step_length_m))  # sqrt(v* / v0)
+    return env.gait_period_s / ratio, env.step_length_m * ratio
+
+
 def quat_to_euler(quat_wxyz: np.ndarray) -> tuple[float, float, float]:
     """Roll, pitch, yaw [rad] (extrinsic x-y-z) of a unit quaternion (w, x, y, z)."""
     w, x, y, z = quat_wxyz
@@ -299,6 +311,7 @@ class PamWalkerEnv(gym.Env):
         size = _obs_size(self.observation_structure)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (size,), np.float32)
         self.target_speed_m_s = self.env_cfg.target_speed_m_s  # v*, this episode's (env.speed_range_m_s)
+        self.gait_period_s, self.step_length_m = gait_at_speed(self.env_cfg, self.target_speed_m_s)  # T, L* at v*
         self._prev_action = np.zeros(self.n_actions)
         self._joint_angles = operator.itemgetter(*self.qpos_idx.tolist())  # from qpos as a list
         margin = math.radians(STOP_MARGIN_DEG)
@@ -350,6 +363,7 @@ class PamWalkerEnv(gym.Env):
             self.target_speed_m_s = float(self.np_random.uniform(*cfg.speed_range_m_s))
         if self.gait_clock:  # after the start noise and v*, for the same reason
             self._phase0 = float(self.np_random.uniform())
+        self.gait_period_s, self.step_length_m = gait_at_speed(cfg, self.target_speed_m_s)  # this episode's
         self._prev_action = np.zeros(self.n_actions)
         self._steps = 0
         self._x0 = float(d.qpos[0])
@@ -446,8 +460,7 @@ class PamWalkerEnv(gym.Env):
 
     def gait_phase(self) -> float:
         """The gait clock's phase phi in [0, 1) now (module docstring, "Gait clock")."""
-        cfg = self.env_cfg
-        return (self._phase0 + self._steps * cfg.control_dt_s / cfg.gait_period_s) % 1.0
+        return (self._phase0 + self._steps * self.env_cfg.control_dt_s / self.gait_period_s) % 1.0
 
     def reward_features(self, action: np.ndarray, previous: np.ndarray | None, fell: bool,
                         state: _State | None = None) -> list[float]:
@@ -501,7 +514,7 @@ class PamWalkerEnv(gym.Env):
                     slip += math.hypot(dx, dy) / self.env_cfg.control_dt_s
                 elif contact[foot]:  # a touchdown
                     s = step_length_m(soles, foot)
-                    step += (s - self.env_cfg.step_length_m) ** 2 / self.env_cfg.step_length_m
+                    step += (s - self.step_length_m) ** 2 / self.step_length_m
             if self.gait_clock:
                 moved = (soles[:, :, :2].mean(axis=1) - self._soles[:, :, :2].mean(axis=1)).tolist()
                 for foot, swing in enumerate(swing_weights(self.gait_phase(), self.env_cfg.swing_share)):

@@ -113,8 +113,11 @@ def metadata(agent: Agent, file_format: str) -> dict[str, Any]:
                           "rule": "command = alpha * action + (1 - alpha) * previous command (0 at start); "
                                   "the observation's previous_action is the command"},
         "gait_clock": {"period_s": env.gait_period_s, "swing_share": env.swing_share,
-                       "rule": "gait_clock = sin, cos of 2 pi phase; phase = phase0 + t / period_s (mod 1), "
-                               "any phase0; period_s 0 = no clock"},
+                       "follows_speed": env.gait_follows_speed,
+                       "rule": "gait_clock = sin, cos of 2 pi phase; phase = phase0 + t / period (mod 1), "
+                               "any phase0; period = period_s, or with follows_speed period_s * sqrt(v0 / v*), "
+                               "v0 = 2 step_length_m / period_s, v* the commanded speed; period_s 0 = no clock",
+                       "step_length_m": env.step_length_m},
         "control_dt_s": env.control_dt_s,
         "checkpoint": {"path": str(agent.path.resolve()), "label": agent.label,
                        "meta": json.loads(json.dumps(agent.meta, default=str))},

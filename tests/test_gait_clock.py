@@ -134,6 +134,8 @@ def test_the_mirror_image_runs_half_a_period_on():
     (["+train.walk_weights.kgait=4"], "train.walk_weights.kgait"),
     (["env.gait_period_s=0.8", "env.swing_share=1"], "swing_share"),
     (["env.gait_period_s=-0.8"], "gait_period_s"),
+    (["env.gait_follows_speed=true"], "gait_follows_speed"),  # no clock to scale
+    (["env.gait_period_s=0.8", "env.gait_follows_speed=true", "env.target_speed_m_s=0"], "gait_follows_speed"),
 ])
 def test_impossible_gait_clocks_fail_naming_the_key(override, key):
     with pytest.raises(ConfigError, match=key):
@@ -157,6 +159,7 @@ def test_a_clocked_agent_trains_mirrored_evaluates_and_exports_its_clock(tmp_pat
     assert len(episodes) == 2 and all(np.isfinite(e["distance_m"]) for e in episodes)
     meta = metadata(agents[0], "onnx")
     assert meta["observation_layout"]["gait_clock"] == [43, 45] and meta["gait_clock"]["period_s"] == 0.8
+    assert meta["gait_clock"]["follows_speed"] is False and meta["gait_clock"]["step_length_m"] == 0.4
 
 
 def test_kgait_charges_a_foot_off_the_ground_while_its_clock_stands_it():
@@ -174,3 +177,28 @@ def test_kgait_charges_a_foot_off_the_ground_while_its_clock_stands_it():
     assert max(info["foot_force_n"]) < 1.0  # in the air
     assert dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"] < 0.05
     env.close()
+
+
+def test_the_clock_and_the_step_length_follow_the_commanded_speed():
+    """With env.gait_follows_speed each episode's clock period T and kstep's step length L*
+    follow its drawn v*: v* = 2 L* / T (one step per half period at that speed), the cadence and
+    the step length each grow as the square root of v*, and the phase turns at the episode's
+    T. A fixed v* (pamrun eval's eval.speed_m_s) sets them the same way."""
+    env = PamWalkerEnv(env={**CLOCK, "gait_follows_speed": True, "speed_command": True, "speed_range_m_s": [0.5, 1.2]})
+    speeds = []
+    for seed in range(6):
+        env.reset(seed=seed)
+        v, start = env.target_speed_m_s, env.gait_phase()
+        env.step(np.zeros(10))
+        period = 0.025 / ((env.gait_phase() - start) % 1)  # as the phase turns
+        assert period == pytest.approx(env.gait_period_s, rel=1e-9)
+        assert 2 * env.step_length_m / period == pytest.approx(v, rel=1e-9)
+        assert period * math.sqrt(v) == pytest.approx(0.8, rel=1e-9)  # 0.8 s at v0 = 2 * 0.4 / 0.8 = 1 m/s
+        speeds.append(v)
+    assert max(speeds) - min(speeds) > 0.2
+    slow = PamWalkerEnv(env={**CLOCK, "gait_follows_speed": True, "target_speed_m_s": 0.5})
+    slow.reset(seed=0)
+    assert slow.gait_period_s == pytest.approx(0.8 * math.sqrt(2)) and slow.step_length_m == pytest.approx(0.4 / math.sqrt(2))
+    assert PamWalkerEnv(env={**CLOCK, "target_speed_m_s": 0.5}).gait_period_s == 0.8  # without it: the fixed clock
+    env.close()
+    slow.close()

@@ -75,6 +75,12 @@ class EnvConfig:
     # step_length_m (0.4 m) is 1 m/s
     gait_period_s: float = 0.0
     swing_share: float = 0.4  # share of the period a foot swings; < 0.5 leaves both feet down between steps
+    # The clock's period and reward.kstep's step length follow the episode's commanded speed v*:
+    # T = gait_period_s (v0 / v*)^(1/2), L* = step_length_m (v* / v0)^(1/2), with v0 = 2
+    # step_length_m / gait_period_s the speed of the nominal clock and step (1 m/s: 0.4 m, 0.8 s),
+    # so v* = 2 L* / T at every v*: cadence and step length each grow with the square root of
+    # speed, as in human walking (pamrun's choice; pamrun.env.gait_at_speed)
+    gait_follows_speed: bool = False
     reset_noise_rad: float = 0.0  # uniform noise on joint angles at reset
     reset_velocity_noise: float = 0.0  # uniform noise on joint velocities [rad/s]
     # Perturbations (pamrun eval's robustness suite uses them; a user can train under them too):
@@ -91,6 +97,10 @@ class EnvConfig:
         _require(math.isfinite(self.target_speed_m_s), "target_speed_m_s", "must be finite")
         _non_negative(self, "gait_period_s")
         _require(0 < self.swing_share < 1, "swing_share", f"must lie in (0, 1), got {self.swing_share}")
+        _require(not self.gait_follows_speed or self.gait_period_s > 0, "gait_follows_speed",
+                 "needs a gait clock (env.gait_period_s > 0, e.g. 0.8)")
+        _require(not self.gait_follows_speed or (self.target_speed_m_s > 0 and min(self.speed_range_m_s, default=1) > 0),
+                 "gait_follows_speed", "needs commanded speeds above 0 (env.target_speed_m_s, env.speed_range_m_s)")
         _require(0 < self.action_filter_alpha <= 1, "action_filter_alpha",
                  f"must lie in (0, 1] (1 = no filter), got {self.action_filter_alpha}")
         r = list(self.speed_range_m_s)
