@@ -59,8 +59,10 @@ between steps, as in walking. The observation ends with sin 2 pi phi, cos 2 pi p
 clock). With ``env.gait_follows_speed`` the episode's period and ``kstep``'s step length follow its
 commanded speed v*: T = gait_period_s sqrt(v0 / v*), L* = step_length_m sqrt(v* / v0), v0 =
 2 step_length_m / gait_period_s (:func:`gait_at_speed`), so that v* = 2 L* / T (cadence and step
-length each grow with the square root of speed, as in human walking). ``kgait`` pays for following the clock (Siekmann et al., "Sim-to-real learning of all
-common bipedal gaits via periodic reward composition", ICRA 2021), less each foot's miss: its
+length each grow with the square root of speed, as in human walking).
+
+``kgait`` pays for following the clock (Siekmann et al., "Sim-to-real learning of all common
+bipedal gaits via periodic reward composition", ICRA 2021), less each foot's miss: its
 ground force f (as a share of the robot's weight, at most 1) while it should swing, and while it
 should stand the larger of its sole centre's horizontal speed u (m/s, at most 1) and its want of
 load, 1 - min(2 f, 1) (a stance foot carries at least half the weight): feature
@@ -152,7 +154,7 @@ from pamrun import body as body_mod  # noqa: E402
 from pamrun.actuation import MuscleDrive, joint_limits_rad, n_actions  # noqa: E402
 from pamrun.config import BodyConfig, EnvConfig, MuscleConfig, RewardConfig, to_object  # noqa: E402
 from pamrun.config.robot import LEG_JOINTS, MUSCLE_INNER_DIAMETER_M  # noqa: E402
-from pamrun.gait import CONTACT_WEIGHT_SHARE, STOP_MARGIN_DEG, step_length_m  # noqa: E402
+from pamrun.gait import CONTACT_WEIGHT_SHARE, STOP_MARGIN_DEG, step_length  # noqa: E402
 from pamrun.muscle import AirMeter  # noqa: E402
 from pamrun.task import fell as fell_rule  # noqa: E402
 
@@ -513,7 +515,7 @@ class PamWalkerEnv(gym.Env):
                     dx, dy = (soles[foot, lowest, :2] - self._soles[foot, lowest, :2]).tolist()
                     slip += math.hypot(dx, dy) / self.env_cfg.control_dt_s
                 elif contact[foot]:  # a touchdown
-                    s = step_length_m(soles, foot)
+                    s = step_length(soles, foot)
                     step += (s - self.step_length_m) ** 2 / self.step_length_m
             if self.gait_clock:
                 moved = (soles[:, :, :2].mean(axis=1) - self._soles[:, :, :2].mean(axis=1)).tolist()

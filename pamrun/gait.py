@@ -156,7 +156,7 @@ def sole_points(steps: dict) -> np.ndarray:
     return np.asarray(steps["foot_xyz_m"], float).reshape(-1, 2, 1, 3)
 
 
-def step_length_m(soles: np.ndarray, foot: int) -> float:
+def step_length(soles: np.ndarray, foot: int) -> float:
     """A step's length [m] as ``foot`` touches down: its sole centre's forward (x) distance ahead
     of the other foot's; ``soles`` (2, k, 3), each foot's contact points (the one definition:
     the gait metrics' and reward.kstep's)."""
@@ -172,7 +172,7 @@ def step_table(steps: dict, contact: np.ndarray) -> list[tuple[int, int, float, 
     out = []
     for row, foot in events:
         other = 1 - foot
-        length = step_length_m(points[row], foot)
+        length = step_length(points[row], foot)
         time = t[row] - t[last[other]] if last[other] is not None else math.nan
         out.append((row, foot, float(length), float(time)))
         last[foot] = row

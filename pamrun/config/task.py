@@ -75,11 +75,9 @@ class EnvConfig:
     # step_length_m (0.4 m) is 1 m/s
     gait_period_s: float = 0.0
     swing_share: float = 0.4  # share of the period a foot swings; < 0.5 leaves both feet down between steps
-    # The clock's period and reward.kstep's step length follow the episode's commanded speed v*:
-    # T = gait_period_s (v0 / v*)^(1/2), L* = step_length_m (v* / v0)^(1/2), with v0 = 2
-    # step_length_m / gait_period_s the speed of the nominal clock and step (1 m/s: 0.4 m, 0.8 s),
-    # so v* = 2 L* / T at every v*: cadence and step length each grow with the square root of
-    # speed, as in human walking (pamrun's choice; pamrun.env.gait_at_speed)
+    # The clock's period and reward.kstep's step length follow the episode's commanded speed v*,
+    # each as its square root, so v* = 2 L* / T at every v* (pamrun's choice, after human walking;
+    # the rule: pamrun.env, "Gait clock", gait_at_speed)
     gait_follows_speed: bool = False
     reset_noise_rad: float = 0.0  # uniform noise on joint angles at reset
     reset_velocity_noise: float = 0.0  # uniform noise on joint velocities [rad/s]
