@@ -38,6 +38,10 @@ Definitions (the manual of :func:`episode_metrics`):
   counts its lock in stance, by design; in swing a walker's knee bends). ``stop_share_gait_max``
   is the largest stop share counting the knees in swing only (the walker issue's target: no
   joint at a stop more than 30 % of the time but the knee's lock in stance).
+* **swing clearance**: the highest a foot's lowest contact point rises in a swing (a run of
+  rows off the ground between two rows on it), above that point's median height in the foot's
+  rows in contact (the ground, less the contact spheres' radius), averaged over the swings of
+  both feet (a stiff-legged walk scuffs: ~0.01 m).
 * **foot slip**: mean horizontal (x, y) speed of a foot's ground point between consecutive
   rows in which the foot is in contact in both, pooled over both feet. The ground point is
   the contact sphere lowest at the first of the two rows, followed to the second: a foot
@@ -81,6 +85,7 @@ GAIT_METRICS = (
     "stop_share_max",
     "knee_swing_stop_share",
     "stop_share_gait_max",
+    "swing_clearance_m",
     "foot_slip_m_s",
     "cost_of_transport",
     "air_nl",
@@ -226,6 +231,24 @@ def knee_swing_stop_share(joint_angle_rad, contact: np.ndarray, spec: GaitSpec) 
     return float(at_stop[swing].mean()) if swing.any() else math.nan
 
 
+def swing_clearance_m(steps: dict, contact: np.ndarray) -> float:
+    """Mean over complete swings of both feet of the peak height [m] of the foot's lowest contact
+    point above its median height in contact (module docstring); NaN without a complete swing."""
+    lowest = sole_points(steps)[..., 2].min(axis=2)  # (n, 2)
+    peaks = []
+    for foot in (RIGHT, LEFT):
+        down = contact[: len(lowest), foot]
+        if not down.any():
+            continue
+        ground = float(np.median(lowest[down, foot]))
+        lifts = np.flatnonzero(down[:-1] & ~down[1:]) + 1  # first row off the ground
+        for start in lifts:
+            back = np.flatnonzero(down[start:])
+            if len(back):  # it lands again: a complete swing
+                peaks.append(float(lowest[start:start + back[0], foot].max()) - ground)
+    return _mean(peaks)
+
+
 def foot_slip_m_s(steps: dict, contact: np.ndarray) -> float:
     """Mean horizontal speed [m/s] of the feet between consecutive rows in contact at both ends."""
     t = np.asarray(steps["t_s"], float)
@@ -291,6 +314,7 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
     out["stop_share_gait_max"] = float(np.nanmax([*(sh for j, sh in zip(JOINTS, shares) if "knee" not in j),
                                                   out["knee_swing_stop_share"]]))
 
+    out["swing_clearance_m"] = swing_clearance_m(steps, contact)
     out["foot_slip_m_s"] = foot_slip_m_s(steps, contact)
 
     distance = float(x[-1] - x[0])

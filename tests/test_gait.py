@@ -202,6 +202,25 @@ def test_knee_stop_counts_in_swing_only():
     assert 0.25 < m["stop_share_gait_max"] < 1.0
 
 
+def test_swing_clearance_is_the_mean_peak_lift_of_complete_swings():
+    """The right foot lifts 0.06 m at the top of each swing, the left 0.02 m; the ground sits
+    at 0.03 m (the contact spheres' centres): clearance is the mean of the peaks above it, and a
+    swing the episode ends in does not count."""
+    steps = walk(70, 20, 10, 12, 0.4, 0.4)  # the last rows cut a swing short
+    down = steps["foot_force_n"] > 0
+    feet = steps["foot_xyz_m"].copy()
+    feet[..., 2] = 0.03
+    for foot, peak in ((0, 0.06), (1, 0.02)):
+        rows = np.flatnonzero(~down[:, foot])
+        feet[rows, foot, 2] += peak * np.sin(np.pi * ((rows % 20) / 20))  # under the peak in the swing's rows
+        feet[rows[rows % 20 == 16] if foot == 0 else rows[(rows - 10) % 20 == 16], foot, 2] = 0.03 + peak
+    feet[66:, 1, 2] = 0.5  # the left foot's last swing (rows 62-69) never lands: not counted
+    steps["foot_xyz_m"] = feet
+    m = episode_metrics(steps, spec())
+    assert m["swing_clearance_m"] == pytest.approx(0.04, abs=1e-9)
+    assert math.isnan(episode_metrics(still(10), spec())["swing_clearance_m"])
+
+
 # --------------------------------------------------------------------------- slip
 
 

@@ -135,6 +135,8 @@ def test_the_mirror_image_runs_half_a_period_on():
     (["env.gait_period_s=0.8", "env.swing_share=1"], "swing_share"),
     (["env.gait_period_s=-0.8"], "gait_period_s"),
     (["env.gait_follows_speed=true"], "gait_follows_speed"),  # no clock to scale
+    (["env.swing_clearance_m=0.05"], "swing_clearance_m"),  # no clock to swing
+    (["env.gait_period_s=0.8", "env.swing_clearance_m=-0.05"], "swing_clearance_m"),
     (["env.gait_period_s=0.8", "env.gait_follows_speed=true", "env.target_speed_m_s=0"], "gait_follows_speed"),
 ])
 def test_impossible_gait_clocks_fail_naming_the_key(override, key):
@@ -177,6 +179,36 @@ def test_kgait_charges_a_foot_off_the_ground_while_its_clock_stands_it():
     assert max(info["foot_force_n"]) < 1.0  # in the air
     assert dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"] < 0.05
     env.close()
+
+
+def test_kgait_charges_a_swinging_foot_that_does_not_lift_to_the_clearance():
+    """Hold the robot still 5 cm above the floor while the clock swings its right foot fully.
+    With env.swing_clearance_m = 0.1 the right foot misses the half of the clearance it lacks;
+    with 0.03 (reached) or 0 (off) it misses nothing: it carries no weight. On the floor, a
+    clearance makes the swinging foot miss fully, whatever it carries."""
+    def held(clearance: float, lift_m: float):
+        env = PamWalkerEnv(env={**CLOCK, "swing_clearance_m": clearance})
+        env.reset(seed=0)
+        while swing_weights(env.gait_phase() + 0.025 / 0.8, 0.4)[0] < 0.999:  # to a step swinging the right foot
+            env.step(np.zeros(10))
+        env.data.qpos[2] += lift_m
+        env.data.qvel[:] = 0.0
+        mujoco.mj_forward(env.model, env.data)
+        _, _, _, _, info = env.step(np.zeros(10))
+        env.close()
+        return dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"], info
+
+    off, info = held(0.0, 0.05)
+    assert max(info["foot_force_n"]) < 1.0  # in the air
+    assert off == pytest.approx(0.5, abs=0.01)  # the left foot carries nothing while it should stand
+    assert held(0.03, 0.05)[0] == pytest.approx(off, abs=1e-9)
+    lacking, _ = held(0.1, 0.05)  # lifted ~0.05 (less the fall in one step) of 0.1
+    assert lacking == pytest.approx(off - 0.5 * 0.5, abs=0.03)
+    plain, info = held(0.0, 0.0)
+    scuffing, _ = held(0.05, 0.0)
+    share = info["foot_force_n"][0] / (info["foot_force_n"].sum())
+    assert 0.2 < share < 0.8  # on both feet: the swinging one carries
+    assert plain - scuffing == pytest.approx(0.5 * (1 - share), abs=0.05)  # its miss: 1, not its load
 
 
 def test_the_clock_and_the_step_length_follow_the_commanded_speed():

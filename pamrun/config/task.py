@@ -75,6 +75,9 @@ class EnvConfig:
     # step_length_m (0.4 m) is 1 m/s
     gait_period_s: float = 0.0
     swing_share: float = 0.4  # share of the period a foot swings; < 0.5 leaves both feet down between steps
+    # Height [m] reward.kgait wants a swinging foot's lowest point to reach, its miss the shortfall's
+    # share (pamrun.env, "Gait clock"); 0 = off (only force on the swinging foot is charged)
+    swing_clearance_m: float = 0.0
     # The clock's period and reward.kstep's step length follow the episode's commanded speed v*,
     # each as its square root, so v* = 2 L* / T at every v* (pamrun's choice, after human walking;
     # the rule: pamrun.env, "Gait clock", gait_at_speed)
@@ -95,6 +98,9 @@ class EnvConfig:
         _require(math.isfinite(self.target_speed_m_s), "target_speed_m_s", "must be finite")
         _non_negative(self, "gait_period_s")
         _require(0 < self.swing_share < 1, "swing_share", f"must lie in (0, 1), got {self.swing_share}")
+        _non_negative(self, "swing_clearance_m")
+        _require(not self.swing_clearance_m or self.gait_period_s > 0, "swing_clearance_m",
+                 "needs a gait clock (env.gait_period_s > 0, e.g. 0.8)")
         _require(not self.gait_follows_speed or self.gait_period_s > 0, "gait_follows_speed",
                  "needs a gait clock (env.gait_period_s > 0, e.g. 0.8)")
         _require(not self.gait_follows_speed or (self.target_speed_m_s > 0 and min(self.speed_range_m_s, default=1) > 0),
