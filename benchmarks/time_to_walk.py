@@ -23,7 +23,8 @@ The milestones and ``best_*`` come from the seeds the run selects its agents on 
 upward for the agent they chose). What the row claims about the agent itself comes from
 ``held_out``: the run's ``best_eval.pt`` under ``pamrun eval``'s defaults, 50 episodes on
 the held-out seeds (1000-1049), with the walk-test passes and their 95 % Wilson interval,
-and the gait's means (``GAIT``: speed, pressure change, hop share, symmetry, stops, slip, air).
+and the gait's means (``GAIT``: speed, pressure change, hop share, symmetry, stops, straight
+swing knees, swing clearance, slip, air).
 ``--figure`` draws the runs' evaluations during training against wall-clock minutes.
 
 It prints one row per seed and the median over seeds (a milestone not reached counts as
@@ -46,7 +47,8 @@ from pathlib import Path
 RESULTS = Path(__file__).parent / "results" / "time_to_walk.jsonl"
 # The held-out gait the row records beside the walk test (means over the 50 episodes)
 GAIT = ("speed_mean", "pressure_change_mean", "hop_share_mean", "step_time_symmetry_mean",
-        "step_length_symmetry_mean", "stop_share_gait_max_mean", "foot_slip_m_s_mean", "air_nl_per_m_mean")
+        "step_length_symmetry_mean", "stop_share_gait_max_mean", "knee_swing_stop_share_mean", "swing_clearance_m_mean",
+        "foot_slip_m_s_mean", "air_nl_per_m_mean")
 
 
 def milestones(run: Path) -> dict:
