@@ -77,7 +77,7 @@ a clock charged as a penalty (-(1/2) sum ..., tried first) made a fall within a 
 than a stumbling step: all six evaluations in the 70,000 frames after the pilot stood fell within 1.6 s.
 The want of clearance asks a swing to lift its foot, which a leg does most cheaply by bending
 its knee: with the want of load alone, the clocked walkers swung straight knees (at their stop
-99.8 % of the swing) and scuffed (1 cm of clearance).
+99.8 % of the swing), and the one that marched in place lifted its feet 1 cm.
 
 ## Reward (thesis Table 9.3, config group ``reward``)
 r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf - kda sum((a_prev - a_prev2)^2)
