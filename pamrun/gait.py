@@ -41,7 +41,8 @@ Definitions (the manual of :func:`episode_metrics`):
 * **swing clearance**: the highest a foot's lowest contact point rises in a swing (a run of
   rows off the ground between two rows on it), above that point's median height in the foot's
   rows in contact (the ground, less the contact spheres' radius), averaged over the swings of
-  both feet (a stiff-legged walk scuffs: ~0.01 m).
+  both feet. It measures the foot, not the knee: a bounding gait lifts its feet high on
+  straight knees.
 * **foot slip**: mean horizontal (x, y) speed of a foot's ground point between consecutive
   rows in which the foot is in contact in both, pooled over both feet. The ground point is
   the contact sphere lowest at the first of the two rows, followed to the second: a foot
@@ -236,16 +237,13 @@ def swing_clearance_m(steps: dict, contact: np.ndarray) -> float:
     point above its median height in contact (module docstring); NaN without a complete swing."""
     lowest = sole_points(steps)[..., 2].min(axis=2)  # (n, 2)
     peaks = []
-    for foot in (RIGHT, LEFT):
-        down = contact[: len(lowest), foot]
-        if not down.any():
-            continue
-        ground = float(np.median(lowest[down, foot]))
+    for foot, lands in enumerate(touchdowns(contact)):
+        down = contact[:, foot]
         lifts = np.flatnonzero(down[:-1] & ~down[1:]) + 1  # first row off the ground
-        for start in lifts:
-            back = np.flatnonzero(down[start:])
-            if len(back):  # it lands again: a complete swing
-                peaks.append(float(lowest[start:start + back[0], foot].max()) - ground)
+        ground = float(np.median(lowest[down, foot])) if len(lands) else 0.0  # unused without a touchdown
+        for start, k in zip(lifts, np.searchsorted(lands, lifts)):  # k: the touchdown that ends it
+            if k < len(lands):  # it lands again: a complete swing
+                peaks.append(float(lowest[start:lands[k], foot].max()) - ground)
     return _mean(peaks)
 
 
