@@ -66,9 +66,11 @@ bipedal gaits via periodic reward composition", ICRA 2021), less each foot's mis
 ground force f (as a share of the robot's weight, at most 1) while it should swing, and while it
 should stand the larger of its sole centre's horizontal speed u (m/s, at most 1) and its want of
 load, 1 - min(2 f, 1) (a stance foot carries at least half the weight): feature
-1 - (1/2) sum_feet [s max(f, c) + (1 - s) max(u, 1 - min(2 f, 1))], in [0, 1], with c the swing's want
-of clearance, 1 - min(h / H, 1), h the height of the foot's lowest contact point above the floor
-and H ``env.swing_clearance_m`` (c = 0 with H = 0, the default). A walk in step with the
+1 - (1/2) sum_feet [s max(f, c, k) + (1 - s) max(u, 1 - min(2 f, 1))], in [0, 1], with c the swing's
+want of clearance, 1 - min(h / H, 1), h the height of the foot's lowest contact point above the floor
+and H ``env.swing_clearance_m``, and k its want of knee bend, 1 - min(q / K, 1), q the leg's knee
+flexion (0 straight, on its stop) and K ``env.swing_knee_deg`` (c = 0 with H = 0, k = 0 with K = 0,
+the defaults). A walk in step with the
 clock earns 1 a step, a two-footed hop about 0.6, standing still about 0.8. The want of load makes
 a flight phase cost what it costs in a run: the first clocked walker (speed only) kept its
 clock-stance feet off the ground 40 % of the time, a stiff-legged run (duty factor 0.42, 0.58 of
@@ -330,6 +332,7 @@ class PamWalkerEnv(gym.Env):
         self._stop_checks = [(adr, lo, hi) for adr, lo, hi, name in limits if "knee" not in name]
         self._knee_checks = [(adr, lo, hi, body_mod.SIDES.index(name.split("_")[0]))
                              for adr, lo, hi, name in limits if "knee" in name]
+        self._knee_adr = [adr for adr, _, _, _ in sorted(self._knee_checks, key=lambda k: k[3])]  # kgait's: right, left
         self._sole_radius_m = float(m.geom_size[self._sole_ids, 0].max())  # kgait's clearance: sphere bottom
         self.contact_n = CONTACT_WEIGHT_SHARE * self.weight_n  # a foot carrying more is on the ground
         mc = self.muscle_cfg  # info["air_nl"] and kair's feature
@@ -526,6 +529,7 @@ class PamWalkerEnv(gym.Env):
             if self.gait_clock:
                 moved = (soles[:, :, :2].mean(axis=1) - self._soles[:, :, :2].mean(axis=1)).tolist()
                 clearance = self.env_cfg.swing_clearance_m
+                knee_rad = math.radians(self.env_cfg.swing_knee_deg)
                 for foot, swing in enumerate(swing_weights(self.gait_phase(), self.env_cfg.swing_share)):
                     share = forces[foot] / self.weight_n
                     speed = math.hypot(*moved[foot]) / self.env_cfg.control_dt_s
@@ -534,6 +538,9 @@ class PamWalkerEnv(gym.Env):
                     if clearance:
                         lift = float(soles[foot, :, 2].min()) - self._sole_radius_m
                         swing_miss = max(swing_miss, 1.0 - min(max(lift, 0.0) / clearance, 1.0))
+                    if knee_rad:
+                        bend = float(self.data.qpos[self._knee_adr[foot]])
+                        swing_miss = max(swing_miss, 1.0 - min(max(bend, 0.0) / knee_rad, 1.0))
                     gait -= 0.5 * (swing * swing_miss + (1 - swing) * stance_miss)
                 gait += 1.0  # 1 - the miss: paid, as the alive bonus (module docstring)
         self._soles, self._contact, self._slip, self._step, self._gait = soles, contact, slip, step, gait

@@ -137,6 +137,8 @@ def test_the_mirror_image_runs_half_a_period_on():
     (["env.gait_follows_speed=true"], "gait_follows_speed"),  # no clock to scale
     (["env.swing_clearance_m=0.05"], "swing_clearance_m"),  # no clock to swing
     (["env.gait_period_s=0.8", "env.swing_clearance_m=-0.05"], "swing_clearance_m"),
+    (["env.swing_knee_deg=20"], "swing_knee_deg"),  # no clock to swing
+    (["env.gait_period_s=0.8", "env.swing_knee_deg=-20"], "swing_knee_deg"),
     (["env.gait_period_s=0.8", "env.gait_follows_speed=true", "env.target_speed_m_s=0"], "gait_follows_speed"),
 ])
 def test_impossible_gait_clocks_fail_naming_the_key(override, key):
@@ -209,6 +211,37 @@ def test_kgait_charges_a_swinging_foot_that_does_not_lift_to_the_clearance():
     share = info["foot_force_n"][0] / (info["foot_force_n"].sum())
     assert 0.2 < share < 0.8  # on both feet: the swinging one carries
     assert plain - scuffing == pytest.approx(0.5 * (1 - share), abs=0.05)  # its miss: 1, not its load
+
+
+def test_kgait_charges_a_swinging_leg_whose_knee_does_not_bend_to_the_demand():
+    """Hold the robot 5 cm above the floor while the clock swings its right foot fully, its right
+    knee set to a bend. With env.swing_knee_deg = 0 (off) the swinging foot misses nothing (it
+    carries no weight); with 20 deg a straight knee misses fully and a knee bent past 20 deg
+    nothing; with 40 deg a knee at q deg misses 1 - q / 40."""
+    def held(knee_deg: float, bend_deg: float) -> tuple[float, float]:
+        env = PamWalkerEnv(env={**CLOCK, "swing_knee_deg": knee_deg})
+        env.reset(seed=0)
+        while swing_weights(env.gait_phase() + 0.025 / 0.8, 0.4)[0] < 0.999:  # to a step swinging the right foot
+            env.step(np.zeros(10))
+        env.data.qpos[2] += 0.05
+        knee = env.model.jnt_qposadr[mujoco.mj_name2id(env.model, mujoco.mjtObj.mjOBJ_JOINT, "right_knee")]
+        env.data.qpos[knee] = math.radians(bend_deg)
+        env.data.qvel[:] = 0.0
+        mujoco.mj_forward(env.model, env.data)
+        _, _, _, _, info = env.step(np.zeros(10))
+        bent = math.degrees(env.data.qpos[knee])  # after the step, as kgait reads it
+        env.close()
+        assert max(info["foot_force_n"]) < 1.0  # in the air
+        return dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"], bent
+
+    off, _ = held(0.0, 0.0)
+    assert off == pytest.approx(0.5, abs=0.01)  # the left foot carries nothing while it should stand
+    assert held(0.0, 30.0)[0] == pytest.approx(off, abs=1e-6)
+    assert held(20.0, 0.0)[0] == pytest.approx(off - 0.5, abs=0.01)  # straight: the swing misses fully
+    bent_past, bent = held(20.0, 30.0)
+    assert bent > 20 and bent_past == pytest.approx(off, abs=1e-6)
+    part, bent = held(40.0, 30.0)
+    assert 0 < bent < 40 and part == pytest.approx(off - 0.5 * (1 - bent / 40), abs=1e-3)
 
 
 def test_the_clock_and_the_step_length_follow_the_commanded_speed():

@@ -78,6 +78,9 @@ class EnvConfig:
     # Height [m] reward.kgait wants a swinging foot's lowest point to reach, its miss the shortfall's
     # share (pamrun.env, "Gait clock"); 0 = off (only force on the swinging foot is charged)
     swing_clearance_m: float = 0.0
+    # Knee flexion [deg] reward.kgait wants of a swinging leg, its miss the shortfall's share
+    # (pamrun.env, "Gait clock"); 0 = off. The stance knee rests straight on its stop (its lock)
+    swing_knee_deg: float = 0.0
     # The clock's period and reward.kstep's step length follow the episode's commanded speed v*,
     # each as its square root, so v* = 2 L* / T at every v* (pamrun's choice, after human walking;
     # the rule: pamrun.env, "Gait clock", gait_at_speed)
@@ -100,6 +103,9 @@ class EnvConfig:
         _require(0 < self.swing_share < 1, "swing_share", f"must lie in (0, 1), got {self.swing_share}")
         _non_negative(self, "swing_clearance_m")
         _require(not self.swing_clearance_m or self.gait_period_s > 0, "swing_clearance_m",
+                 "needs a gait clock (env.gait_period_s > 0, e.g. 0.8)")
+        _non_negative(self, "swing_knee_deg")
+        _require(not self.swing_knee_deg or self.gait_period_s > 0, "swing_knee_deg",
                  "needs a gait clock (env.gait_period_s > 0, e.g. 0.8)")
         _require(not self.gait_follows_speed or self.gait_period_s > 0, "gait_follows_speed",
                  "needs a gait clock (env.gait_period_s > 0, e.g. 0.8)")
