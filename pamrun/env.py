@@ -81,8 +81,9 @@ The want of clearance asks a swing to lift its foot (the clocked walkers swung s
 at their stop 99.8 % of the swing); at 5 cm the one run with it lifted its feet 15 cm by
 bounding, its knees still straight: a foot can be lifted without bending a knee. The want of knee
 bend asks the knee itself: at 20 deg the one run with it bent its swing knees (at their stop 1 %
-of the swing, 65-75 deg at mid-swing), in step with the clock, and held every perturbation of
-the robustness suite better than the clocked walkers without it.
+of the swing, 70-75 deg at mid-swing; and bent 35-45 deg at touchdown: a crouch), in step with
+the clock, and held every perturbation of the robustness suite better than the clocked walkers
+without it.
 
 ## Reward (thesis Table 9.3, config group ``reward``)
 r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf - kda sum((a_prev - a_prev2)^2)

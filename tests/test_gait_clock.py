@@ -183,22 +183,34 @@ def test_kgait_charges_a_foot_off_the_ground_while_its_clock_stands_it():
     env.close()
 
 
+def held_in_right_swing(env_overrides: dict, lift_m: float, knee_deg: float | None = None):
+    """Step a clocked env (CLOCK plus env_overrides) to a step that swings the right foot fully,
+    raise the robot lift_m, set its right knee to knee_deg (if given), still, and step once with
+    zero action: kgait's feature, the step's info, and the right knee's angle after it [deg]."""
+    env = PamWalkerEnv(env={**CLOCK, **env_overrides})
+    env.reset(seed=0)
+    while swing_weights(env.gait_phase() + 0.025 / 0.8, 0.4)[0] < 0.999:  # to a step swinging the right foot
+        env.step(np.zeros(10))
+    knee = env.model.jnt_qposadr[mujoco.mj_name2id(env.model, mujoco.mjtObj.mjOBJ_JOINT, "right_knee")]
+    env.data.qpos[2] += lift_m
+    if knee_deg is not None:
+        env.data.qpos[knee] = math.radians(knee_deg)
+    env.data.qvel[:] = 0.0
+    mujoco.mj_forward(env.model, env.data)
+    _, _, _, _, info = env.step(np.zeros(10))
+    bent = math.degrees(env.data.qpos[knee])  # after the step, as kgait reads it
+    env.close()
+    return dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"], info, bent
+
+
 def test_kgait_charges_a_swinging_foot_that_does_not_lift_to_the_clearance():
     """Hold the robot still 5 cm above the floor while the clock swings its right foot fully.
     With env.swing_clearance_m = 0.1 the right foot misses the half of the clearance it lacks;
     with 0.03 (reached) or 0 (off) it misses nothing: it carries no weight. On the floor, a
     clearance makes the swinging foot miss fully, whatever it carries."""
     def held(clearance: float, lift_m: float):
-        env = PamWalkerEnv(env={**CLOCK, "swing_clearance_m": clearance})
-        env.reset(seed=0)
-        while swing_weights(env.gait_phase() + 0.025 / 0.8, 0.4)[0] < 0.999:  # to a step swinging the right foot
-            env.step(np.zeros(10))
-        env.data.qpos[2] += lift_m
-        env.data.qvel[:] = 0.0
-        mujoco.mj_forward(env.model, env.data)
-        _, _, _, _, info = env.step(np.zeros(10))
-        env.close()
-        return dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"], info
+        kgait, info, _ = held_in_right_swing({"swing_clearance_m": clearance}, lift_m)
+        return kgait, info
 
     off, info = held(0.0, 0.05)
     assert max(info["foot_force_n"]) < 1.0  # in the air
@@ -219,20 +231,9 @@ def test_kgait_charges_a_swinging_leg_whose_knee_does_not_bend_to_the_demand():
     carries no weight); with 20 deg a straight knee misses fully and a knee bent past 20 deg
     nothing; with 40 deg a knee at q deg misses 1 - q / 40."""
     def held(knee_deg: float, bend_deg: float) -> tuple[float, float]:
-        env = PamWalkerEnv(env={**CLOCK, "swing_knee_deg": knee_deg})
-        env.reset(seed=0)
-        while swing_weights(env.gait_phase() + 0.025 / 0.8, 0.4)[0] < 0.999:  # to a step swinging the right foot
-            env.step(np.zeros(10))
-        env.data.qpos[2] += 0.05
-        knee = env.model.jnt_qposadr[mujoco.mj_name2id(env.model, mujoco.mjtObj.mjOBJ_JOINT, "right_knee")]
-        env.data.qpos[knee] = math.radians(bend_deg)
-        env.data.qvel[:] = 0.0
-        mujoco.mj_forward(env.model, env.data)
-        _, _, _, _, info = env.step(np.zeros(10))
-        bent = math.degrees(env.data.qpos[knee])  # after the step, as kgait reads it
-        env.close()
+        kgait, info, bent = held_in_right_swing({"swing_knee_deg": knee_deg}, 0.05, bend_deg)
         assert max(info["foot_force_n"]) < 1.0  # in the air
-        return dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"], bent
+        return kgait, bent
 
     off, _ = held(0.0, 0.0)
     assert off == pytest.approx(0.5, abs=0.01)  # the left foot carries nothing while it should stand

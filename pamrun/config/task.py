@@ -79,7 +79,7 @@ class EnvConfig:
     # share (pamrun.env, "Gait clock"); 0 = off (only force on the swinging foot is charged)
     swing_clearance_m: float = 0.0
     # Knee flexion [deg] reward.kgait wants of a swinging leg, its miss the shortfall's share
-    # (pamrun.env, "Gait clock"); 0 = off. The stance knee rests straight on its stop (its lock)
+    # (pamrun.env, "Gait clock"); 0 = off. Nothing is asked of the stance knee
     swing_knee_deg: float = 0.0
     # The clock's period and reward.kstep's step length follow the episode's commanded speed v*,
     # each as its square root, so v* = 2 L* / T at every v* (pamrun's choice, after human walking;
