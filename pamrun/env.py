@@ -70,7 +70,8 @@ load, 1 - min(2 f, 1) (a stance foot carries at least half the weight): feature
 want of clearance, 1 - min(h / H, 1), h the height of the foot's lowest contact point above the floor
 and H ``env.swing_clearance_m``, and k its want of knee bend, 1 - min(q / K, 1), q the leg's knee
 flexion (0 straight, on its stop) and K ``env.swing_knee_deg`` (c = 0 with H = 0, k = 0 with K = 0,
-the defaults). A walk in step with the
+the defaults); with ``env.stance_knee_deg`` S > 0 a standing leg's miss is also at least its bend's
+share of S, min(q / S, 1) (:func:`foot_miss`). A walk in step with the
 clock earns 1 a step, a two-footed hop about 0.6, standing still about 0.8. The want of load makes
 a flight phase cost what it costs in a run: the first clocked walker (speed only) kept its
 clock-stance feet off the ground 40 % of the time, a stiff-legged run (duty factor 0.42, 0.58 of
@@ -247,6 +248,21 @@ def swing_weights(phase: float, swing_share: float) -> tuple[float, float]:
     edge = math.cos(math.pi * swing_share)
     return tuple(0.5 * (1.0 + math.tanh((math.sin(2 * math.pi * (phase + 0.5 * foot)) - edge) / 0.1))
                  for foot in (0, 1))
+
+
+def foot_miss(swing: float, share: float, speed_m_s: float, lift_m: float, knee_rad: float, env: EnvConfig) -> float:
+    """One foot's miss of the gait clock, in [0, 1] (module docstring, "Gait clock"): swing weight
+    s, ground force as a share of the weight, sole speed, lowest point's height above the floor and
+    the leg's knee flexion (0 straight)."""
+    stance = max(min(speed_m_s, 1.0), 1.0 - min(2.0 * share, 1.0))  # moving, or not carrying
+    swing_miss = min(share, 1.0)  # carrying
+    if env.swing_clearance_m:  # not lifted
+        swing_miss = max(swing_miss, 1.0 - min(max(lift_m, 0.0) / env.swing_clearance_m, 1.0))
+    if env.swing_knee_deg:  # not bent
+        swing_miss = max(swing_miss, 1.0 - min(max(knee_rad, 0.0) / math.radians(env.swing_knee_deg), 1.0))
+    if env.stance_knee_deg:  # bent while it should carry
+        stance = max(stance, min(max(knee_rad, 0.0) / math.radians(env.stance_knee_deg), 1.0))
+    return swing * swing_miss + (1.0 - swing) * stance
 
 
 def gait_at_speed(env: EnvConfig, speed_m_s: float) -> tuple[float, float]:
@@ -532,20 +548,12 @@ class PamWalkerEnv(gym.Env):
                     step += (s - self.step_length_m) ** 2 / self.step_length_m
             if self.gait_clock:
                 moved = (soles[:, :, :2].mean(axis=1) - self._soles[:, :, :2].mean(axis=1)).tolist()
-                clearance = self.env_cfg.swing_clearance_m
-                knee_rad = math.radians(self.env_cfg.swing_knee_deg)
+                lifts = (soles[:, :, 2].min(axis=1) - self._sole_radius_m).tolist()
+                knees = self.data.qpos[self._knee_adr].tolist()
                 for foot, swing in enumerate(swing_weights(self.gait_phase(), self.env_cfg.swing_share)):
-                    share = forces[foot] / self.weight_n
                     speed = math.hypot(*moved[foot]) / self.env_cfg.control_dt_s
-                    stance_miss = max(min(speed, 1.0), 1.0 - min(2.0 * share, 1.0))  # moving, or not carrying
-                    swing_miss = min(share, 1.0)  # carrying, or (with a clearance) not lifted
-                    if clearance:
-                        lift = float(soles[foot, :, 2].min()) - self._sole_radius_m
-                        swing_miss = max(swing_miss, 1.0 - min(max(lift, 0.0) / clearance, 1.0))
-                    if knee_rad:
-                        bend = float(self.data.qpos[self._knee_adr[foot]])
-                        swing_miss = max(swing_miss, 1.0 - min(max(bend, 0.0) / knee_rad, 1.0))
-                    gait -= 0.5 * (swing * swing_miss + (1 - swing) * stance_miss)
+                    gait -= 0.5 * foot_miss(swing, forces[foot] / self.weight_n, speed, lifts[foot], knees[foot],
+                                            self.env_cfg)
                 gait += 1.0  # 1 - the miss: paid, as the alive bonus (module docstring)
         self._soles, self._contact, self._slip, self._step, self._gait = soles, contact, slip, step, gait
 

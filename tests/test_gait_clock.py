@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from pamrun.config import ConfigError, to_object
-from pamrun.env import REWARD_KEYS, PamWalkerEnv, swing_weights
+from pamrun.env import REWARD_KEYS, PamWalkerEnv, foot_miss, swing_weights
 from pamrun.symmetry import action_map, mirror_state, observation_map
 from tests.conftest import compose_config
 from tests.test_train import TINY, train_here
@@ -139,6 +139,8 @@ def test_the_mirror_image_runs_half_a_period_on():
     (["env.gait_period_s=0.8", "env.swing_clearance_m=-0.05"], "swing_clearance_m"),
     (["env.swing_knee_deg=20"], "swing_knee_deg"),  # no clock to swing
     (["env.gait_period_s=0.8", "env.swing_knee_deg=-20"], "swing_knee_deg"),
+    (["env.stance_knee_deg=30"], "stance_knee_deg"),  # no clock to stand on
+    (["env.gait_period_s=0.8", "env.stance_knee_deg=-30"], "stance_knee_deg"),
     (["env.gait_period_s=0.8", "env.gait_follows_speed=true", "env.target_speed_m_s=0"], "gait_follows_speed"),
 ])
 def test_impossible_gait_clocks_fail_naming_the_key(override, key):
@@ -243,6 +245,53 @@ def test_kgait_charges_a_swinging_leg_whose_knee_does_not_bend_to_the_demand():
     assert bent > 20 and bent_past == pytest.approx(off, abs=1e-6)
     part, bent = held(40.0, 30.0)
     assert 0 < bent < 40 and part == pytest.approx(off - 0.5 * (1 - bent / 40), abs=1e-3)
+
+
+def test_a_foot_misses_the_larger_of_its_wants_and_a_bent_stance_knee_is_one():
+    """foot_miss, kgait's per-foot miss: in stance the larger of its sole speed, its want of load
+    and, with env.stance_knee_deg S, its knee's bend as a share of S; in swing the larger of its
+    load and, with env.swing_knee_deg K, its want of bend; in between, the two weighted."""
+    off = to_object(compose_config("env.gait_period_s=0.8")).env
+    knees = to_object(compose_config("env.gait_period_s=0.8", "env.stance_knee_deg=30", "env.swing_knee_deg=20")).env
+    rad = math.radians
+    assert foot_miss(0.0, 0.5, 0.0, 0.0, rad(45), off) == 0.0  # S off: a loaded, still stance misses nothing
+    assert foot_miss(0.0, 0.5, 0.0, 0.0, rad(15), knees) == pytest.approx(0.5)
+    assert foot_miss(0.0, 0.5, 0.0, 0.0, rad(45), knees) == 1.0
+    assert foot_miss(0.0, 0.5, 0.0, 0.0, rad(-1), knees) == 0.0  # straight, on its stop
+    assert foot_miss(0.0, 0.5, 0.3, 0.0, rad(6), knees) == pytest.approx(0.3)  # speed 0.3 > bend 0.2
+    assert foot_miss(0.0, 0.1, 0.0, 0.0, rad(6), knees) == pytest.approx(0.8)  # want of load 0.8
+    assert foot_miss(1.0, 0.0, 0.0, 0.05, rad(45), knees) == 0.0  # swinging: the stance demand is off
+    assert foot_miss(1.0, 0.0, 0.0, 0.05, rad(10), knees) == pytest.approx(0.5)  # half the swing bend
+    assert foot_miss(0.5, 0.0, 0.0, 0.05, rad(10), knees) == pytest.approx(0.5 * 0.5 + 0.5 * 1.0)
+
+
+def test_kgait_charges_bent_knees_on_the_ground_only_where_the_clock_stands_them():
+    """The same crouch (both knees commanded to bend, feet on the ground) under three values of
+    env.stance_knee_deg: off and 10^6 deg (a bend's share ~0) pay the same kgait; 1 deg (any
+    bend misses fully) pays less on each step with knees bent past it, by at most the stances'
+    half of the feature."""
+    def crouch(stance_knee_deg: float) -> tuple[list[float], list[float], list[float]]:
+        env = PamWalkerEnv(env={**CLOCK, "stance_knee_deg": stance_knee_deg})
+        env.reset(seed=0)
+        action = np.zeros(10)
+        action[[2, 7]] = 0.5  # right_knee, left_knee
+        kgait, stance, bent = [], [], []
+        for _ in range(6):
+            _, _, _, _, info = env.step(action)
+            kgait.append(dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"])
+            stance.append(sum(1.0 - s for s in swing_weights(env.gait_phase(), 0.4)))
+            bent.append(min(math.degrees(env.data.qpos[a]) for a in env._knee_adr))
+        env.close()
+        return kgait, stance, bent
+
+    off, stance, bent = crouch(0.0)
+    assert crouch(1e6)[0] == pytest.approx(off, abs=1e-5)
+    full = crouch(1.0)[0]
+    assert max(bent) > 30
+    for k_off, k_full, share, q in zip(off, full, stance, bent):
+        assert k_full <= k_off + 1e-12 and k_off - k_full <= 0.5 * share + 1e-9
+        if q > 1.0 and share > 0.5:
+            assert k_full < k_off - 0.05
 
 
 def test_the_clock_and_the_step_length_follow_the_commanded_speed():

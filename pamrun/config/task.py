@@ -79,8 +79,11 @@ class EnvConfig:
     # share (pamrun.env, "Gait clock"); 0 = off (only force on the swinging foot is charged)
     swing_clearance_m: float = 0.0
     # Knee flexion [deg] reward.kgait wants of a swinging leg, its miss the shortfall's share
-    # (pamrun.env, "Gait clock"); 0 = off. Nothing is asked of the stance knee
+    # (pamrun.env, "Gait clock"); 0 = off. env.stance_knee_deg asks the stance knee
     swing_knee_deg: float = 0.0
+    # Knee flexion [deg] at which reward.kgait charges a leg the clock stands on fully, its miss
+    # the bend's share (pamrun.env, "Gait clock"): asks stance toward the knee's lock; 0 = off
+    stance_knee_deg: float = 0.0
     # The clock's period and reward.kstep's step length follow the episode's commanded speed v*,
     # each as its square root, so v* = 2 L* / T at every v* (pamrun's choice, after human walking;
     # the rule: pamrun.env, "Gait clock", gait_at_speed)
@@ -101,12 +104,10 @@ class EnvConfig:
         _require(math.isfinite(self.target_speed_m_s), "target_speed_m_s", "must be finite")
         _non_negative(self, "gait_period_s")
         _require(0 < self.swing_share < 1, "swing_share", f"must lie in (0, 1), got {self.swing_share}")
-        _non_negative(self, "swing_clearance_m")
-        _require(not self.swing_clearance_m or self.gait_period_s > 0, "swing_clearance_m",
-                 "needs a gait clock (env.gait_period_s > 0, e.g. 0.8)")
-        _non_negative(self, "swing_knee_deg")
-        _require(not self.swing_knee_deg or self.gait_period_s > 0, "swing_knee_deg",
-                 "needs a gait clock (env.gait_period_s > 0, e.g. 0.8)")
+        for name in ("swing_clearance_m", "swing_knee_deg", "stance_knee_deg"):
+            _non_negative(self, name)
+            _require(not getattr(self, name) or self.gait_period_s > 0, name,
+                     "needs a gait clock (env.gait_period_s > 0, e.g. 0.8)")
         _require(not self.gait_follows_speed or self.gait_period_s > 0, "gait_follows_speed",
                  "needs a gait clock (env.gait_period_s > 0, e.g. 0.8)")
         _require(not self.gait_follows_speed or (self.target_speed_m_s > 0 and min(self.speed_range_m_s, default=1) > 0),
