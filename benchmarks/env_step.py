@@ -10,7 +10,8 @@ env's Python's) cost. The sized preset (kinematic coupling) is measured with bot
 timing) and ``numpy`` (the reference); the thesis coupling always uses numpy. ``--models``
 measures the sized preset instead with each pneumatic model beyond the thesis' (``MODELS``:
 the flow-limited valve, hysteresis, the Tondu-Lopez law, the toe) against today's, both
-kernels, in the same run.
+kernels, in the same run; ``--clock`` the sized preset with the gait clock and every kgait
+demand on (``CLOCK``) against today's.
 
 Each measurement is repeated ``--repeats`` times, env and bare alternating so that a change
 of machine load hits both; the median and the range (min-max) of the env rate, the bare
@@ -79,6 +80,9 @@ MODELS = {
     "force_law": {"muscle": {"force_law": "tondu_lopez"}},
     "toe": {"body": {"toe": True}},
 }
+# The gait clock with every kgait demand on (experiment=walker's period and swing knee, a stance knee),
+# the env's reward path the clock adds: --clock measures it against today's in the same run
+CLOCK = {"env": {"gait_period_s": 0.8, "swing_clearance_m": 0.05, "swing_knee_deg": 20.0, "stance_knee_deg": 30.0}}
 
 
 def merged(base: dict, over: dict) -> dict:
@@ -91,7 +95,7 @@ def spread(values: list[float]) -> tuple[float, float, float]:
 
 
 def measure(name: str, kernel: str, seconds: float, repeats: int, model: str = "") -> dict:
-    kwargs = merged({"muscle": {**preset("muscle", name), "kernel": kernel}}, MODELS.get(model, {}))
+    kwargs = merged({"muscle": {**preset("muscle", name), "kernel": kernel}}, {**MODELS, "clock": CLOCK}.get(model, {}))
     env = PamWalkerEnv(**kwargs)
     used = "numba" if env.drive.compiled else "numpy"  # the thesis coupling is numpy only
     ready_s = warm_up(env)
@@ -132,13 +136,14 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5, help="measurements per rate (env and bare alternating)")
     parser.add_argument("--presets", nargs="+", default=["sized", "thesis"])
     parser.add_argument("--models", action="store_true", help="the sized preset with each pneumatic model")
+    parser.add_argument("--clock", action="store_true", help="the sized preset with the gait clock and its demands")
     args = parser.parse_args()
     print(f"median [min-max] of {args.repeats} x {args.seconds:g} s each")
     results = []
-    for model in ("", *MODELS) if args.models else ():
+    for model in ("", *MODELS) if args.models else ("", "clock") if args.clock else ():
         for kernel in ("numba", "numpy"):
             results.append(measure("sized", kernel, args.seconds, args.repeats, model))
-    for name in () if args.models else args.presets:
+    for name in () if args.models or args.clock else args.presets:
         coupling = preset("muscle", name).get("coupling", MuscleConfig().coupling)
         for kernel in (("numba", "numpy") if coupling == "kinematic" else ("numpy",)):
             results.append(measure(name, kernel, args.seconds, args.repeats))
