@@ -45,8 +45,6 @@ import numpy as np
 
 from pamrun.checkpoints import (ENV_SECTIONS, Agent, CheckpointError, check_fits, find_checkpoints, load_agent,
                                 unique_labels)
-
-
 from pamrun.gait import GAIT_METRICS
 from pamrun.rollout import (torch_threads, aggregate, env_kwargs, eval_env_options, evaluate_agents, gait_spec,
                             make_policy, perturb, run_episode)
@@ -104,6 +102,14 @@ class TrainingEvaluator:
     block, disjoint from ``pamrun eval``'s held-out ``eval.seed``) with ``eval.reset_noise_rad``
     start noise (the same starts every time, as ``pamrun eval``), in this process with one
     torch thread, and returns the aggregate (:func:`aggregate`) with its cost ``eval_s``.
+
+    **Selection under perturbation** (``train.select_perturbations``): once a nominal episode
+    passes, the call also runs ``train.select_episodes`` episodes (seeds ``eval.selection_seed
+    + k``) under each of those perturbations of the suite, and ``select_pass_rate`` is the walk
+    pass rate over all the episodes it ran (without them: ``walk_pass_rate``). ``better`` ranks
+    by it first, then by ``eval.rank_by``: among agents that all walk the nominal block, the
+    one that holds under perturbation is kept. The nominal aggregate is unchanged (the
+    curriculum reads it).
     Anchors: Stable-Baselines3's ``EvalCallback``, TorchRL's ``Evaluator``.
     """
 
@@ -111,10 +117,14 @@ class TrainingEvaluator:
         from pamrun.env import PamWalkerEnv
 
         self.ecfg, self.episodes = cfg.eval, cfg.train.eval_episodes
+        self.select_episodes = cfg.train.select_episodes
         sections = {k: asdict(getattr(cfg, k)) for k in ENV_SECTIONS}
         sections["env"].update(reset_noise_rad=cfg.eval.reset_noise_rad,
                                reset_velocity_noise=cfg.eval.reset_velocity_noise, episode_s=cfg.eval.episode_s)
         self.env = PamWalkerEnv(**sections)
+        self.perturbed = [PamWalkerEnv(**perturb(sections, cfg.eval.perturbations[name],
+                                                 f"eval.perturbations.{name}"))
+                          for name in cfg.train.select_perturbations]
 
     def __call__(self, actor) -> dict[str, Any]:
         import torch
@@ -124,40 +134,40 @@ class TrainingEvaluator:
         def policy(obs: np.ndarray) -> np.ndarray:
             return actor(torch.as_tensor(obs, dtype=torch.float32).unsqueeze(0))[0].numpy()
 
+        def block(env, n: int) -> list[dict]:
+            return [run_episode(policy, env, self.ecfg.selection_seed + k, keep_steps=False) for k in range(n)]
+
         with torch.no_grad(), torch_threads(1):
-            episodes = [run_episode(policy, self.env, self.ecfg.selection_seed + k, keep_steps=False)
-                        for k in range(self.episodes)]
+            episodes = block(self.env, self.episodes)
+            result = aggregate(episodes, self.ecfg)
+            if result["walk_passes"]:
+                episodes += [e for env in self.perturbed for e in block(env, self.select_episodes)]
         seeds = [self.ecfg.selection_seed, self.ecfg.selection_seed + self.episodes - 1]
-        return {**aggregate(episodes, self.ecfg), "seeds": seeds, "eval_s": time.perf_counter() - start}
+        select = float(np.mean([walk_passed(e, self.ecfg) for e in episodes]))
+        return {**result, "select_pass_rate": select, "seeds": seeds, "eval_s": time.perf_counter() - start}
 
     def better(self, new: dict, best: dict | None) -> bool:
-        """Whether ``new`` ranks before ``best`` by ``eval.rank_by`` (ties keep the old one)."""
+        """Whether ``new`` ranks before ``best`` by ``select_pass_rate``, then ``eval.rank_by``
+        (ties keep the old one; a best saved before selection under perturbation existed
+        counts its ``walk_pass_rate``)."""
         if best is None:
             return True
-        ranked = rank([{**best, "agent": "0-best"}, {**new, "agent": "1-new"}], self.ecfg.rank_by)
+        best = {"select_pass_rate": best["walk_pass_rate"], **best, "agent": "0-best"}
+        ranked = rank([best, {**new, "agent": "1-new"}], ["select_pass_rate", *self.ecfg.rank_by])
         return ranked[0]["agent"] == "1-new"
 
     def close(self) -> None:
-        self.env.close()
+        for env in (self.env, *self.perturbed):
+            env.close()
 
 
 # --------------------------------------------------------------------------- metrics and ranking
-
-
-
-
-
-
-
-
 
 
 def pass_text(row: dict) -> str:
     """'41/50 (69-90 %)': passes of episodes with the 95 % Wilson interval."""
     return (f"{row['walk_passes']}/{row['episodes']} ({100 * row['walk_pass_ci_low']:.0f}-"
             f"{100 * row['walk_pass_ci_high']:.0f} %)")
-
-
 
 
 def rank(rows: list[dict], rank_by: list[str]) -> list[dict]:

@@ -40,7 +40,7 @@ EPISODE_FIELDS = ("episode", "frames", "reward", "avg_reward", "q0", "length", "
                   "physics_error")
 EVAL_FIELDS = ("frames", "episodes", "wall_time_s", "eval_s", "walk_pass_rate", "stand_rate", "fall_rate",
                "distance_mean", "distance_min", "duration_mean", "max_abs_y_max", "return_mean",
-               "pressure_change_mean", "best")
+               "pressure_change_mean", "select_pass_rate", "best")
 # What a training writes besides .hydra/ and its config (an early kill's leftovers are moved aside).
 LEFTOVERS = ("episodes.csv", "evals.csv", "run.json", "tensorboard", "training.png", "evals.png")
 # What a resume takes from its command line: the budget (wall time counts the run's whole time).

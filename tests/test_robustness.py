@@ -85,6 +85,55 @@ def test_training_selects_on_the_selection_block():
     evaluator.close()
 
 
+def _select_evaluator(walk_distance_m: float):
+    """A training evaluator whose nominal block a standing actor passes (1 s; a sway back of a
+    few mm is no fall) when ``walk_distance_m`` is below 0, selecting also under a shove it
+    cannot stand."""
+    from pamrun.evaluate import TrainingEvaluator
+
+    cfg = to_object(compose_config("train.eval_episodes=2", "train.select_episodes=3", "eval.episode_s=1.0",
+                                   "eval.walk_duration_s=1.0"))
+    cfg.eval.walk_distance_m = walk_distance_m  # (a config refuses < 0: set past its check)
+    cfg.eval.perturbations["shove"] = Perturbation(values={"env": {
+        "push_impulse_ns": [0.0, 150.0, 0.0], "push_time_s": 0.1, "push_duration_s": 0.1}})
+    cfg.train.select_perturbations = ["shove"]
+    return TrainingEvaluator(cfg)
+
+
+def test_selection_under_perturbation_counts_the_perturbed_episodes_once_a_nominal_one_passes():
+    actor = torch.nn.Sequential(torch.nn.Linear(OBS_SIZE, N_JOINTS), torch.nn.Tanh())
+    torch.nn.init.zeros_(actor[0].weight), torch.nn.init.zeros_(actor[0].bias)  # holds its pressures: stands
+    standing = _select_evaluator(-1.0)
+    result = standing(actor)
+    standing.close()
+    assert result["walk_pass_rate"] == 1.0 and result["episodes"] == 2  # the nominal aggregate is the nominal block's
+    assert result["select_pass_rate"] == pytest.approx(2 / 5)  # 2 nominal passes, 3 shoved falls
+    never = _select_evaluator(100.0)
+    result = never(actor)
+    never.close()
+    assert result["walk_pass_rate"] == 0.0 and result["select_pass_rate"] == 0.0
+
+
+@pytest.mark.parametrize("override, key", [("train.select_perturbations=[lag_x2,nope]", "train.select_perturbations"),
+                                           ("train.select_episodes=0", "select_episodes"),
+                                           ("train.eval_every_frames=0", "select_perturbations")])
+def test_selection_under_perturbation_is_checked_with_the_config(override, key):
+    with pytest.raises(ConfigError, match=key):
+        to_object(compose_config("train.select_perturbations=[lag_x2]", override))
+
+
+def test_training_keeps_the_agent_that_holds_under_perturbation():
+    evaluator = _select_evaluator(-1.0)
+    evaluator.close()
+    best = {"walk_pass_rate": 1.0, "stand_rate": 1.0, "distance_mean": 9.0, "select_pass_rate": 0.7}
+    assert evaluator.better({**best, "distance_mean": 6.0, "select_pass_rate": 0.8}, best)
+    assert not evaluator.better({**best, "distance_mean": 12.0, "select_pass_rate": 0.6}, best)
+    assert evaluator.better({**best, "distance_mean": 9.5}, best)  # a tie goes on to eval.rank_by
+    assert not evaluator.better(dict(best), best)  # a full tie keeps the old one
+    legacy = {k: v for k, v in best.items() if k != "select_pass_rate"}  # saved before the key existed
+    assert not evaluator.better({**best, "select_pass_rate": 0.9}, legacy)
+
+
 # --------------------------------------------------------------------------- the env's perturbation options
 
 

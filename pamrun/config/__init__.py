@@ -67,9 +67,10 @@ class Config:
     def __post_init__(self) -> None:
         _require(self.seed >= 0, "seed", f"must be >= 0, got {self.seed}")
         _require(self.format in ("onnx", "torchscript"), "format", f"must be onnx or torchscript, got {self.format!r}")
-        for name in self.train.randomize:
-            _require(name in self.eval.perturbations, "train.randomize",
-                     f"unknown perturbation {name!r}; known (eval.perturbations): {', '.join(self.eval.perturbations)}")
+        for key in ("randomize", "select_perturbations"):
+            for name in getattr(self.train, key):
+                _require(name in self.eval.perturbations, f"train.{key}", f"unknown perturbation {name!r}; "
+                         f"known (eval.perturbations): {', '.join(self.eval.perturbations)}")
         for key, weight in (("reward.kgait", self.reward.kgait), ("train.walk_weights.kgait",
                                                                   self.train.walk_weights.get("kgait", 0.0))):
             _require(not weight or self.env.gait_period_s > 0, key,

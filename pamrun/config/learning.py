@@ -84,6 +84,11 @@ class TrainConfig:
     # checkpoints/best_eval.pt (the best agent by eval.rank_by).
     eval_every_frames: int = 20_000  # evaluate the actor this often; 0 = never
     eval_episodes: int = 10  # episodes per evaluation (the walk test's 10)
+    # Selection under perturbation (pamrun/evaluate.py, TrainingEvaluator): once an evaluation has a
+    # nominal pass, it also runs select_episodes episodes under each of these eval.perturbations, and
+    # best_eval.pt is the agent with the best walk pass rate over all of them. [] = nominal only.
+    select_perturbations: list[str] = field(default_factory=list)  # e.g. [friction_low, lag_x2, push_forward]
+    select_episodes: int = 3  # episodes per perturbation (selection seeds eval.selection_seed + k)
     stop_on_walk: bool = False  # stop the run once an evaluation passes the walk test (status: walked)
     # Curriculum, stand then walk: once an evaluation after the actor's first update stands in
     # every episode (the "stand, learned" milestone), the learner's reward weighs the forward
@@ -110,6 +115,9 @@ class TrainConfig:
         _non_negative(self, "max_minutes", "updates_per_frame")
         _require(self.eval_every_frames >= 0, "eval_every_frames", f"must be >= 0 (0 = never), got {self.eval_every_frames}")
         _require(self.eval_episodes >= 1, "eval_episodes", f"must be >= 1, got {self.eval_episodes}")
+        _require(self.select_episodes >= 1, "select_episodes", f"must be >= 1, got {self.select_episodes}")
+        _require(not (self.select_perturbations and self.eval_every_frames == 0), "select_perturbations",
+                 "needs evaluations during training (train.eval_every_frames > 0)")
         _require(not (self.stop_on_walk and self.eval_every_frames == 0), "stop_on_walk",
                  "needs evaluations during training (train.eval_every_frames > 0)")
         _require(self.init_random_frames >= 0, "init_random_frames", "must be >= 0")
