@@ -202,7 +202,9 @@ def training_curves(csv_path: Path, png_path: Path) -> Path:
 
 def eval_curves(csv_path: Path, png_path: Path, walk_distance_m: float = 7.0, episode_s: float = 10.0) -> Path:
     """The evaluations during training (``evals.csv``) against frames: mean and minimum
-    distance, mean duration, and the stand and walk-test pass rates."""
+    distance, mean duration, the stand and walk-test pass rates, the pass rate with the
+    perturbed selection episodes (``train.select_perturbations``; where a run has them) and
+    the evaluation whose agent is ``best_eval.pt``."""
     import csv
 
     rows = list(csv.DictReader(Path(csv_path).open()))
@@ -221,6 +223,12 @@ def eval_curves(csv_path: Path, png_path: Path, walk_distance_m: float = 7.0, ep
         bottom.plot(frames, col("stand_rate"), "o-", color="tab:orange", label="stand rate")
         bottom.plot(frames, col("walk_pass_rate"), "o-", color="tab:green", label="walk-test pass rate")
         bottom.plot(frames, col("fall_rate"), ".-", color="tab:red", alpha=0.6, label="fall rate")
+        select = np.array([float(r.get("select_pass_rate") or "nan") for r in rows])
+        if not np.allclose(select, col("walk_pass_rate"), equal_nan=True):  # a run selecting under perturbation
+            bottom.plot(frames, select, "^-", color="tab:purple", label="pass rate, with perturbed episodes")
+        kept = [int(r["frames"]) for r in rows if r.get("best") == "1"]
+        if kept:
+            bottom.axvline(kept[-1], color="k", lw=0.8, ls="--", label="best_eval.pt")
     top.set_ylabel("distance (m)")
     top.set_title(f"Evaluations during training ({len(rows)}; deterministic policy, fixed seeds)")
     top.legend(loc="upper left")
