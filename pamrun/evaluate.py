@@ -147,13 +147,14 @@ class TrainingEvaluator:
         return {**result, "select_pass_rate": select, "seeds": seeds, "eval_s": time.perf_counter() - start}
 
     def better(self, new: dict, best: dict | None) -> bool:
-        """Whether ``new`` ranks before ``best`` by ``select_pass_rate``, then ``eval.rank_by``
-        (ties keep the old one; a best saved before selection under perturbation existed
-        counts its ``walk_pass_rate``)."""
+        """Whether ``new`` ranks before ``best`` by ``eval.rank_by``, preceded by
+        ``select_pass_rate`` when selecting under perturbation (ties keep the old one; a best
+        saved before selection under perturbation existed counts its ``walk_pass_rate``)."""
         if best is None:
             return True
         best = {"select_pass_rate": best["walk_pass_rate"], **best, "agent": "0-best"}
-        ranked = rank([best, {**new, "agent": "1-new"}], ["select_pass_rate", *self.ecfg.rank_by])
+        by = ["select_pass_rate"] * bool(self.perturbed) + list(self.ecfg.rank_by)
+        ranked = rank([best, {**new, "agent": "1-new"}], by)
         return ranked[0]["agent"] == "1-new"
 
     def close(self) -> None:

@@ -132,6 +132,8 @@ def test_training_keeps_the_agent_that_holds_under_perturbation():
     assert not evaluator.better(dict(best), best)  # a full tie keeps the old one
     legacy = {k: v for k, v in best.items() if k != "select_pass_rate"}  # saved before the key existed
     assert not evaluator.better({**best, "select_pass_rate": 0.9}, legacy)
+    evaluator.perturbed = []  # not selecting under perturbation: eval.rank_by alone, as before
+    assert evaluator.better({**best, "distance_mean": 12.0, "select_pass_rate": 0.6}, best)
 
 
 # --------------------------------------------------------------------------- the env's perturbation options
