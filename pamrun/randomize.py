@@ -7,8 +7,8 @@ Each episode, with probability ``train.randomize_prob``, the robot and task carr
 observation and start noise, pushes), drawn uniformly or, with ``train.randomize_weights``, in
 proportion to their weights (1 for a name it leaves out; drawn without replacement, so a name
 of weight w among n of weight 1 comes first with chance w / (w + n)), each at its own strength s drawn
-uniformly in [0, ``train.randomize_reach``] of the way from the run's own config to it
-(:func:`pamrun.rollout.perturb`: a factor f becomes 1 + s (f - 1); s > 1 goes beyond the
+uniformly in [0, ``train.randomize_reach``] (or its own ``train.randomize_reaches``) of the
+way from the run's own config to it (:func:`pamrun.rollout.perturb`: a factor f becomes 1 + s (f - 1); s > 1 goes beyond the
 suite's size, for a margin). Factors compose (mass x1.1 and x0.9 both drawn: their product);
 two perturbations that set the same value (the pushes) are never drawn together. A push comes at a time drawn uniformly between 1 s
 and 1 s before the episode's end, so a policy cannot learn when it comes. Otherwise the
@@ -26,7 +26,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from pamrun.config import Config, flatten
+from pamrun.config import Config, ConfigError, flatten
 from pamrun.env import PamWalkerEnv
 from pamrun.rollout import perturb
 
@@ -39,8 +39,9 @@ class RandomizedWalker(gym.Env):
     metadata = PamWalkerEnv.metadata
 
     def __init__(self, kwargs: dict[str, dict], perturbations: dict[str, Any], prob: float, reach: float,
-                 count: int = 1, weights: dict[str, float] | None = None):
-        self.kwargs, self.perturbations, self.prob, self.reach, self.count = kwargs, perturbations, prob, reach, count
+                 count: int = 1, weights: dict[str, float] | None = None, reaches: dict[str, float] | None = None):
+        self.kwargs, self.perturbations, self.prob, self.count = kwargs, perturbations, prob, count
+        self.reach = {n: (reaches or {}).get(n, reach) for n in perturbations}  # each name's reach
         self.names = sorted(perturbations)
         w = np.array([(weights or {}).get(n, 1.0) for n in self.names])
         self.p = w / w.sum() if weights else None  # draw probabilities in names order (None: uniform)
@@ -56,7 +57,7 @@ class RandomizedWalker(gym.Env):
         """The env ``cfg.train``'s randomisation settings describe, around the env keyword arguments ``kwargs``."""
         t = cfg.train
         return cls(kwargs, {n: cfg.eval.perturbations[n] for n in t.randomize}, t.randomize_prob, t.randomize_reach,
-                   t.randomize_count, t.randomize_weights)
+                   t.randomize_count, t.randomize_weights, t.randomize_reaches)
 
     def draw(self) -> dict[str, dict]:
         """This episode's env keyword arguments (and ``self.drawn``)."""
@@ -72,7 +73,7 @@ class RandomizedWalker(gym.Env):
             sets = set(flatten(self.perturbations[name].values))
             if len(self.drawn) == self.count or sets & taken:
                 continue
-            strength = float(rng.uniform(0.0, self.reach))
+            strength = float(rng.uniform(0.0, self.reach[name]))
             kwargs = perturb(kwargs, self.perturbations[name], f"train.randomize.{name}", strength)
             self.drawn, taken = (*self.drawn, (name, strength)), taken | sets
         env = kwargs["env"]
@@ -101,11 +102,19 @@ class RandomizedWalker(gym.Env):
 
 
 def check(cfg: Config) -> None:
-    """Every perturbation ``train.randomize`` names applies to the run's robot and task: a
-    ConfigError naming the key otherwise, before the run writes anything (its names are checked
-    against ``eval.perturbations`` with the config)."""
+    """Every perturbation ``train.randomize`` names applies to the run's robot and task, at its
+    full reach too (friction x0.7 at reach 4 would be negative): a ConfigError naming the key
+    otherwise, before the run writes anything (its names are checked against
+    ``eval.perturbations`` with the config)."""
     from dataclasses import asdict
 
     kwargs = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}
-    for name in cfg.train.randomize:
+    t = cfg.train
+    for name in t.randomize:
         perturb(kwargs, cfg.eval.perturbations[name], f"eval.perturbations.{name}")
+        reach = t.randomize_reaches.get(name, t.randomize_reach)
+        try:
+            perturb(kwargs, cfg.eval.perturbations[name], f"eval.perturbations.{name}", reach)
+        except ConfigError as e:
+            key = f"train.randomize_reaches.{name}" if name in t.randomize_reaches else "train.randomize_reach"
+            raise ConfigError(key, f"{name} at strength {reach:g} is impossible: {e}") from None

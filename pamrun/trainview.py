@@ -31,6 +31,7 @@ def header_table(cfg: Config, out: Path):
                    + "".join(f"; {k} {w:g} once it stands" for k, w in t.walk_weights.items())),
         ("randomised", (f"{t.randomize_prob:.0%} of episodes, {t.randomize_count} of: "
                         + ", ".join(n + (f" x{t.randomize_weights[n]:g}" if n in t.randomize_weights else "")
+                                    + (f" to {t.randomize_reaches[n]:g}" if n in t.randomize_reaches else "")
                                     for n in t.randomize)
                         + f" (strength 0-{t.randomize_reach:g})"
                         if t.randomize else "no")),

@@ -101,6 +101,36 @@ def test_weights_draw_a_perturbation_more_often(cfg):
             to_object(compose_config("train.randomize=[friction_low]", f"+train.randomize_weights.{override}"))
 
 
+def test_a_name_can_reach_further_than_the_others(cfg):
+    """train.randomize_reaches: friction_low's strength is drawn in [0, 2] (its own reach: the
+    floor down to x0.4), mass_heavy's in [0, 1] (train.randomize_reach); a reach that makes a
+    value impossible (friction x0.7 at strength 4: negative) fails naming its key before a run."""
+    from pamrun.randomize import RandomizedWalker, check
+
+    names = ["mass_heavy", "friction_low"]
+    kwargs = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}
+    env = RandomizedWalker(kwargs, {n: cfg.eval.perturbations[n] for n in names}, 1.0, 1.0, 2, None,
+                           {"friction_low": 2.0})
+    env.reset(seed=3)
+    strengths = {n: [] for n in names}
+    for _ in range(200):
+        kw = env.draw()
+        for n, s in env.drawn:
+            strengths[n].append(s)
+        s = dict(env.drawn)["friction_low"]
+        assert kw["body"]["friction_static"] == pytest.approx(cfg.body.friction_static * (1 - 0.3 * s))
+    assert max(strengths["mass_heavy"]) <= 1.0 < max(strengths["friction_low"]) <= 2.0
+    assert sum(s > 1 for s in strengths["friction_low"]) > 70  # expected 100 of 200
+    env.close()
+    check(to_object(compose_config("train.randomize=[friction_low]", "+train.randomize_reaches.friction_low=3")))
+    for overrides, key in ((("+train.randomize_reaches.friction_low=4",), "train.randomize_reaches.friction_low"),
+                           (("train.randomize_reach=4",), "train.randomize_reach"),
+                           (("+train.randomize_reaches.lag_x2=2",), "randomize_reaches.lag_x2"),
+                           (("+train.randomize_reaches.friction_low=-1",), "randomize_reaches.friction_low")):
+        with pytest.raises(ConfigError, match=key):
+            check(to_object(compose_config("train.randomize=[friction_low]", *overrides)))
+
+
 def test_randomize_names_are_checked_with_the_config():
     with pytest.raises(ConfigError, match="train.randomize"):
         to_object(compose_config("train.randomize=[mass_heavy,nope]"))

@@ -107,6 +107,9 @@ class TrainConfig:
     randomize_count: int = 1  # perturbations combined in a perturbed episode (two that set one value: not both)
     # Relative draw weights of names in randomize (others 1), e.g. {friction_low: 3}; {} = uniform
     randomize_weights: dict[str, float] = field(default_factory=dict)
+    # Reach of names in randomize (others randomize_reach), e.g. {friction_low: 1.7}: that perturbation
+    # alone drawn further beyond the suite's size; {} = randomize_reach for all
+    randomize_reaches: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for name in ("max_episodes", "max_frames", "avg_window", "keep_saved", "workers", "frames_per_batch",
@@ -143,3 +146,8 @@ class TrainConfig:
                      f"not a name in train.randomize ({', '.join(self.randomize) or 'empty'})")
             _require(weight > 0 and math.isfinite(weight), f"randomize_weights.{name}",
                      f"must be a finite weight > 0 (leave a name out of train.randomize instead), got {weight}")
+        for name, reach in self.randomize_reaches.items():
+            _require(name in self.randomize, f"randomize_reaches.{name}",
+                     f"not a name in train.randomize ({', '.join(self.randomize) or 'empty'})")
+            _require(reach >= 0 and math.isfinite(reach), f"randomize_reaches.{name}",
+                     f"must be a finite strength >= 0, got {reach}")
