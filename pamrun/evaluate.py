@@ -105,7 +105,8 @@ class TrainingEvaluator:
 
     **Selection under perturbation** (``train.select_perturbations``): once a nominal episode
     passes, the call also runs ``train.select_episodes`` episodes (seeds ``eval.selection_seed
-    + k``) under each of those perturbations of the suite, and ``select_pass_rate`` is the walk
+    + k``; a name's own count in ``train.select_episodes_of``) under each of those perturbations
+    of the suite, and ``select_pass_rate`` is the walk
     pass rate over all the episodes it ran (without them: ``walk_pass_rate``). ``better`` ranks
     by it first, then by ``eval.rank_by``: among agents that all walk the nominal block, the
     one that holds under perturbation is kept. The nominal aggregate is unchanged (the
@@ -117,7 +118,8 @@ class TrainingEvaluator:
         from pamrun.env import PamWalkerEnv
 
         self.ecfg, self.episodes = cfg.eval, cfg.train.eval_episodes
-        self.select_episodes = cfg.train.select_episodes
+        t = cfg.train
+        self.select_counts = [t.select_episodes_of.get(name, t.select_episodes) for name in t.select_perturbations]
         sections = {k: asdict(getattr(cfg, k)) for k in ENV_SECTIONS}
         sections["env"].update(reset_noise_rad=cfg.eval.reset_noise_rad,
                                reset_velocity_noise=cfg.eval.reset_velocity_noise, episode_s=cfg.eval.episode_s)
@@ -141,7 +143,7 @@ class TrainingEvaluator:
             episodes = block(self.env, self.episodes)
             result = aggregate(episodes, self.ecfg)
             if result["walk_passes"]:
-                episodes += [e for env in self.perturbed for e in block(env, self.select_episodes)]
+                episodes += [e for env, n in zip(self.perturbed, self.select_counts) for e in block(env, n)]
         seeds = [self.ecfg.selection_seed, self.ecfg.selection_seed + self.episodes - 1]
         select = float(np.mean([walk_passed(e, self.ecfg) for e in episodes]))
         return {**result, "select_pass_rate": select, "seeds": seeds, "eval_s": time.perf_counter() - start}

@@ -85,10 +85,10 @@ def test_training_selects_on_the_selection_block():
     evaluator.close()
 
 
-def _select_evaluator(walk_distance_m: float):
+def _select_evaluator(walk_distance_m: float, shoves: int | None = None):
     """A training evaluator whose nominal block a standing actor passes (1 s; a sway back of a
     few mm is no fall) when ``walk_distance_m`` is below 0, selecting also under a shove it
-    cannot stand."""
+    cannot stand (``shoves`` episodes of it: train.select_episodes_of; None: select_episodes)."""
     from pamrun.evaluate import TrainingEvaluator
 
     cfg = to_object(compose_config("train.eval_episodes=2", "train.select_episodes=3", "eval.episode_s=1.0",
@@ -97,6 +97,7 @@ def _select_evaluator(walk_distance_m: float):
     cfg.eval.perturbations["shove"] = Perturbation(values={"env": {
         "push_impulse_ns": [0.0, 150.0, 0.0], "push_time_s": 0.1, "push_duration_s": 0.1}})
     cfg.train.select_perturbations = ["shove"]
+    cfg.train.select_episodes_of = {} if shoves is None else {"shove": shoves}
     return TrainingEvaluator(cfg)
 
 
@@ -108,6 +109,10 @@ def test_selection_under_perturbation_counts_the_perturbed_episodes_once_a_nomin
     standing.close()
     assert result["walk_pass_rate"] == 1.0 and result["episodes"] == 2  # the nominal aggregate is the nominal block's
     assert result["select_pass_rate"] == pytest.approx(2 / 5)  # 2 nominal passes, 3 shoved falls
+    more = _select_evaluator(-1.0, shoves=5)
+    result = more(actor)
+    more.close()
+    assert result["select_pass_rate"] == pytest.approx(2 / 7)  # the shove's own count: 5 falls
     never = _select_evaluator(100.0)
     result = never(actor)
     never.close()
@@ -116,6 +121,8 @@ def test_selection_under_perturbation_counts_the_perturbed_episodes_once_a_nomin
 
 @pytest.mark.parametrize("override, key", [("train.select_perturbations=[lag_x2,nope]", "train.select_perturbations"),
                                            ("train.select_episodes=0", "select_episodes"),
+                                           ("+train.select_episodes_of.friction_low=5", "select_episodes_of.friction_low"),
+                                           ("+train.select_episodes_of.lag_x2=0", "select_episodes_of.lag_x2"),
                                            ("train.eval_every_frames=0", "select_perturbations")])
 def test_selection_under_perturbation_is_checked_with_the_config(override, key):
     with pytest.raises(ConfigError, match=key):

@@ -89,6 +89,9 @@ class TrainConfig:
     # best_eval.pt is the agent with the best walk pass rate over all of them. [] = nominal only.
     select_perturbations: list[str] = field(default_factory=list)  # e.g. [friction_low, lag_x2, push_forward]
     select_episodes: int = 3  # episodes per perturbation (selection seeds eval.selection_seed + k)
+    # A name's own count (others select_episodes), e.g. {friction_low: 10}: 3 episodes cannot tell
+    # a 50 % agent from a 90 % one (3 of 3 passes: chance 0.13 against 0.73)
+    select_episodes_of: dict[str, int] = field(default_factory=dict)
     stop_on_walk: bool = False  # stop the run once an evaluation passes the walk test (status: walked)
     # Curriculum, stand then walk: once an evaluation after the actor's first update stands in
     # every episode (the "stand, learned" milestone), the learner's reward weighs the forward
@@ -119,6 +122,10 @@ class TrainConfig:
         _require(self.eval_every_frames >= 0, "eval_every_frames", f"must be >= 0 (0 = never), got {self.eval_every_frames}")
         _require(self.eval_episodes >= 1, "eval_episodes", f"must be >= 1, got {self.eval_episodes}")
         _require(self.select_episodes >= 1, "select_episodes", f"must be >= 1, got {self.select_episodes}")
+        for name, n in self.select_episodes_of.items():
+            _require(name in self.select_perturbations, f"select_episodes_of.{name}",
+                     f"not a name in train.select_perturbations ({', '.join(self.select_perturbations) or 'empty'})")
+            _require(n >= 1, f"select_episodes_of.{name}", f"must be >= 1, got {n}")
         _require(not (self.select_perturbations and self.eval_every_frames == 0), "select_perturbations",
                  "needs evaluations during training (train.eval_every_frames > 0)")
         _require(not (self.stop_on_walk and self.eval_every_frames == 0), "stop_on_walk",
