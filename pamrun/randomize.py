@@ -6,9 +6,10 @@ Each episode, with probability ``train.randomize_prob``, the robot and task carr
 ``eval.perturbations``, the suite's own: mass, friction, regulator lag, top pressure,
 observation and start noise, pushes), drawn uniformly or, with ``train.randomize_weights``, in
 proportion to their weights (1 for a name it leaves out; drawn without replacement, so a name
-of weight w among n of weight 1 comes first with chance w / (w + n)), each at its own strength s drawn
-uniformly in [0, ``train.randomize_reach``] (or its own ``train.randomize_reaches``) of the
-way from the run's own config to it (:func:`pamrun.rollout.perturb`: a factor f becomes 1 + s (f - 1); s > 1 goes beyond the
+of weight w among n of weight 1 comes first with chance w / (w + n)), each at its own
+strength s drawn uniformly in [0, ``train.randomize_reach``] (or the name's own
+``train.randomize_reaches``) of the way from the run's own config to it
+(:func:`pamrun.rollout.perturb`: a factor f becomes 1 + s (f - 1); s > 1 goes beyond the
 suite's size, for a margin). Factors compose (mass x1.1 and x0.9 both drawn: their product);
 two perturbations that set the same value (the pushes) are never drawn together. A push comes at a time drawn uniformly between 1 s
 and 1 s before the episode's end, so a policy cannot learn when it comes. Otherwise the
