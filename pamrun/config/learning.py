@@ -122,10 +122,8 @@ class TrainConfig:
         _require(self.eval_every_frames >= 0, "eval_every_frames", f"must be >= 0 (0 = never), got {self.eval_every_frames}")
         _require(self.eval_episodes >= 1, "eval_episodes", f"must be >= 1, got {self.eval_episodes}")
         _require(self.select_episodes >= 1, "select_episodes", f"must be >= 1, got {self.select_episodes}")
-        for name, n in self.select_episodes_of.items():
-            _require(name in self.select_perturbations, f"select_episodes_of.{name}",
-                     f"not a name in train.select_perturbations ({', '.join(self.select_perturbations) or 'empty'})")
-            _require(n >= 1, f"select_episodes_of.{name}", f"must be >= 1, got {n}")
+        _check_by_name(self.select_episodes_of, "select_episodes_of", self.select_perturbations,
+                       "select_perturbations", lambda n: n >= 1, "must be >= 1")
         _require(not (self.select_perturbations and self.eval_every_frames == 0), "select_perturbations",
                  "needs evaluations during training (train.eval_every_frames > 0)")
         _require(not (self.stop_on_walk and self.eval_every_frames == 0), "stop_on_walk",
@@ -148,13 +146,15 @@ class TrainConfig:
         _require(0 <= self.randomize_prob <= 1, "randomize_prob", f"must lie in [0, 1], got {self.randomize_prob}")
         _require(self.randomize_reach >= 0 and math.isfinite(self.randomize_reach), "randomize_reach",
                  f"must be a finite strength >= 0, got {self.randomize_reach}")
-        for name, weight in self.randomize_weights.items():
-            _require(name in self.randomize, f"randomize_weights.{name}",
-                     f"not a name in train.randomize ({', '.join(self.randomize) or 'empty'})")
-            _require(weight > 0 and math.isfinite(weight), f"randomize_weights.{name}",
-                     f"must be a finite weight > 0 (leave a name out of train.randomize instead), got {weight}")
-        for name, reach in self.randomize_reaches.items():
-            _require(name in self.randomize, f"randomize_reaches.{name}",
-                     f"not a name in train.randomize ({', '.join(self.randomize) or 'empty'})")
-            _require(reach >= 0 and math.isfinite(reach), f"randomize_reaches.{name}",
-                     f"must be a finite strength >= 0, got {reach}")
+        _check_by_name(self.randomize_weights, "randomize_weights", self.randomize, "randomize",
+                       lambda w: w > 0 and math.isfinite(w),
+                       "must be a finite weight > 0 (leave a name out of train.randomize instead)")
+        _check_by_name(self.randomize_reaches, "randomize_reaches", self.randomize, "randomize",
+                       lambda r: r >= 0 and math.isfinite(r), "must be a finite strength >= 0")
+
+
+def _check_by_name(values: dict, key: str, names: list[str], names_key: str, ok, message: str) -> None:
+    """Each ``train.<key>.<name>`` names an entry of ``train.<names_key>`` and has a value ``ok`` accepts."""
+    for name, value in values.items():
+        _require(name in names, f"{key}.{name}", f"not a name in train.{names_key} ({', '.join(names) or 'empty'})")
+        _require(ok(value), f"{key}.{name}", f"{message}, got {value}")
