@@ -91,13 +91,13 @@ def _select_evaluator(walk_distance_m: float, shoves: int | None = None):
     cannot stand (``shoves`` episodes of it: train.select_episodes_of; None: select_episodes)."""
     from pamrun.evaluate import TrainingEvaluator
 
-    cfg = to_object(compose_config("train.eval_episodes=2", "train.select_episodes=3", "eval.episode_s=1.0",
-                                   "eval.walk_duration_s=1.0"))
+    overrides = ["train.eval_episodes=2", "train.select_episodes=3", "eval.episode_s=1.0", "eval.walk_duration_s=1.0",
+                 "+eval.perturbations.shove={values:{env:{push_impulse_ns:[0,150,0],push_time_s:0.1,"
+                 "push_duration_s:0.1}}}", "train.select_perturbations=[shove]"]
+    if shoves is not None:
+        overrides.append(f"+train.select_episodes_of.shove={shoves}")
+    cfg = to_object(compose_config(*overrides))
     cfg.eval.walk_distance_m = walk_distance_m  # (a config refuses < 0: set past its check)
-    cfg.eval.perturbations["shove"] = Perturbation(values={"env": {
-        "push_impulse_ns": [0.0, 150.0, 0.0], "push_time_s": 0.1, "push_duration_s": 0.1}})
-    cfg.train.select_perturbations = ["shove"]
-    cfg.train.select_episodes_of = {} if shoves is None else {"shove": shoves}
     return TrainingEvaluator(cfg)
 
 
@@ -130,6 +130,8 @@ def test_selection_under_perturbation_is_checked_with_the_config(override, key):
 
 
 def test_training_keeps_the_agent_that_holds_under_perturbation():
+    from pamrun.evaluate import TrainingEvaluator
+
     evaluator = _select_evaluator(-1.0)
     evaluator.close()
     best = {"walk_pass_rate": 1.0, "stand_rate": 1.0, "distance_mean": 9.0, "select_pass_rate": 0.7}
@@ -139,8 +141,9 @@ def test_training_keeps_the_agent_that_holds_under_perturbation():
     assert not evaluator.better(dict(best), best)  # a full tie keeps the old one
     legacy = {k: v for k, v in best.items() if k != "select_pass_rate"}  # saved before the key existed
     assert not evaluator.better({**best, "select_pass_rate": 0.9}, legacy)
-    evaluator.perturbed = []  # not selecting under perturbation: eval.rank_by alone, as before
-    assert evaluator.better({**best, "distance_mean": 12.0, "select_pass_rate": 0.6}, best)
+    nominal = TrainingEvaluator(to_object(compose_config("train.eval_episodes=2")))  # no select_perturbations
+    nominal.close()
+    assert nominal.better({**best, "distance_mean": 12.0, "select_pass_rate": 0.6}, best)  # eval.rank_by alone
 
 
 # --------------------------------------------------------------------------- the env's perturbation options
