@@ -107,10 +107,9 @@ class TrainingEvaluator:
     passes, the call also runs ``train.select_episodes`` episodes (seeds ``eval.selection_seed
     + k``; a name's own count in ``train.select_episodes_of``) under each of those perturbations
     of the suite, and ``select_pass_rate`` is the walk pass rate over all the episodes it ran
-    (without them: ``walk_pass_rate``). ``better`` ranks
-    by it first, then by ``eval.rank_by``: among agents that all walk the nominal block, the
-    one that holds under perturbation is kept. The nominal aggregate is unchanged (the
-    curriculum reads it).
+    (without them: ``walk_pass_rate``). ``better`` ranks by it first, then by ``eval.rank_by``:
+    among agents that all walk the nominal block, the one that holds under perturbation is kept.
+    The nominal aggregate is unchanged (the curriculum reads it).
     Anchors: Stable-Baselines3's ``EvalCallback``, TorchRL's ``Evaluator``.
     """
 
