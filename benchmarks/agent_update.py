@@ -30,10 +30,17 @@ from pathlib import Path
 
 import torch
 import torchrl
-from train_throughput import ACT, BATCH, OBS, _batch, _spec, spread  # the sibling benchmark's batch and summary
+from train_throughput import (  # the sibling benchmark's batch and summary
+    ACT,
+    BATCH,
+    OBS,
+    _batch,
+    _spec,
+    spread,
+)
 
-from pamrun import agents
 from pamrun.config import AlgoConfig
+from pamrun.learning import networks
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from test_agents import _hand_written_tanh_gaussian  # noqa: E402 (SAC's sample before TanhNormal)
@@ -43,10 +50,10 @@ SAC = {"name": "sac", "target_smoothing": 0.005, "actor_lr": 3e-4, "critic_lr": 
 RESULTS = Path(__file__).parent / "results" / "agent_update.jsonl"
 
 
-def _learner(algo: dict, baseline: bool, seed: int = 0) -> agents.Learner:
+def _learner(algo: dict, baseline: bool, seed: int = 0) -> networks.Learner:
     """A learner of ``algo``; ``baseline``: with the private/hand-written part it replaced."""
     torch.manual_seed(seed)
-    learner = agents.make_learner(AlgoConfig(**algo), OBS, ACT, _spec())
+    learner = networks.make_learner(AlgoConfig(**algo), OBS, ACT, _spec())
     if baseline and algo["name"] == "sac":
         actor = learner.actor.module
         actor.sample = lambda obs: _hand_written_tanh_gaussian(actor, obs)
@@ -56,7 +63,7 @@ def _learner(algo: dict, baseline: bool, seed: int = 0) -> agents.Learner:
 
 
 @torch.no_grad()
-def _foreach_soft_update(learner: agents.Learner) -> None:
+def _foreach_soft_update(learner: networks.Learner) -> None:
     """The soft update before: torch's private multi-tensor lerp over each target list."""
     for targets, params in learner._pairs:
         torch._foreach_lerp_(targets, params, learner.cfg.target_smoothing)
@@ -103,7 +110,7 @@ def soft_update_equality(n: int) -> dict:
 def sample_equality() -> dict:
     """SAC's sample, TanhNormal vs hand-written, same generator state; ~1/3 of actions saturated."""
     torch.manual_seed(0)
-    actor = agents.SquashedGaussianActor(OBS, ACT, (400, 300), 3e-3)
+    actor = networks.SquashedGaussianActor(OBS, ACT, (400, 300), 3e-3)
     with torch.no_grad():
         actor.net[4].weight.mul_(2000)
         actor.log_std_head.weight.mul_(3)

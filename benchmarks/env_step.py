@@ -33,7 +33,7 @@ import mujoco
 import numpy as np
 
 from pamrun.config import MuscleConfig, preset
-from pamrun.env import PamWalkerEnv
+from pamrun.task.env import PamWalkerEnv
 
 
 def env_rate(env: PamWalkerEnv, seconds: float, seed: int = 0) -> float:

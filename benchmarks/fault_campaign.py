@@ -25,8 +25,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from pamrun.rundir import RunFiles
-from pamrun.runio import read_json
+from pamrun.runs.directory import RunFiles
+from pamrun.runs.files import read_json
 
 COMMAND = ["train", "experiment=thesis", "muscle=sized", "train=smoke", "algo=td3", "train.max_frames=3000",
            "train.init_random_frames=200",

@@ -4,11 +4,11 @@
 
 Least squares (scipy) of F = (pi D0^2 P / 4) (a (1 - k eps)^2 - b), D0 = 20 mm, on Table 8.4's
 polynomial over its valid range (every 0.1 % from -3 % to the zero-force contraction, 0-800 kPa
-in 50 kPa steps: pamrun.force_laws.polynomial_fit_grid). That fit is the one pamrun stores
+in 50 kPa steps: pamrun.physics.force_laws.polynomial_fit_grid). That fit is the one pamrun stores
 (TONDU_LOPEZ_THETA0_DEG, TONDU_LOPEZ_K, rounded to 4 decimals); the measured DMSP-20-300
 points (Martens & Boblan 2017) are its independent check. For the record the script also
 fits the measured points alone (the model's force clipped at 0 against them), the
-alternative the stored fit was chosen over (see pamrun.force_laws.TonduLopez).
+alternative the stored fit was chosen over (see pamrun.physics.force_laws.TonduLopez).
 
 Writes benchmarks/results/tondu_lopez_fit.json: both fits, the stored constants' errors
 (RMSE and largest error [N] over the grid, where it lies, the RMSE per pressure, the error
@@ -25,8 +25,15 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from pamrun.force_laws import (MARTENS_BOBLAN_DMSP20_300, TONDU_LOPEZ_K, TONDU_LOPEZ_THETA0_DEG, CoefficientLaw,
-                               ThesisPolynomial, TonduLopez, polynomial_fit_grid)
+from pamrun.physics.force_laws import (
+    MARTENS_BOBLAN_DMSP20_300,
+    TONDU_LOPEZ_K,
+    TONDU_LOPEZ_THETA0_DEG,
+    CoefficientLaw,
+    ThesisPolynomial,
+    TonduLopez,
+    polynomial_fit_grid,
+)
 
 OUT = Path(__file__).parent / "results" / "tondu_lopez_fit.json"
 START = (30.0, 1.0)  # theta0 [deg], k: a Chou & Hannaford muscle (k = 1) to start from

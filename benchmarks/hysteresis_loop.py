@@ -15,10 +15,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from pamrun import plots
+from pamrun.bench.lab import print_hysteresis_table
 from pamrun.config import MuscleConfig
-from pamrun.hysteresis import hysteresis_loop
-from pamrun.lab import print_hysteresis_table
+from pamrun.evaluation import figures
+from pamrun.physics.hysteresis import hysteresis_loop
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -27,7 +27,7 @@ def main() -> None:
     results = hysteresis_loop(MuscleConfig())
     path = ROOT / "benchmarks" / "results" / "hysteresis_loop.json"
     path.write_text(json.dumps(results))
-    plots.hysteresis_loop(path, ROOT / "docs" / "img" / "hysteresis_loop.png")
+    figures.hysteresis_loop(path, ROOT / "docs" / "img" / "hysteresis_loop.png")
     print_hysteresis_table(results)
     print(f"Wrote {path.relative_to(ROOT)}, docs/img/hysteresis_loop.png")
 

@@ -21,9 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from pamrun.config import Config, Perturbation
-from pamrun.evaluate import load_agents
-from pamrun.rollout import aggregate, evaluate_agents, perturb
-from pamrun.task import walk_passed
+from pamrun.evaluation.episodes import aggregate, evaluate_agents
+from pamrun.evaluation.evaluate import load_agents
+from pamrun.task.criteria import walk_passed
+from pamrun.task.spec import perturb
 
 RESULTS = Path(__file__).parent / "results" / "shipped_agent_paths.jsonl"
 ROOT = Path(__file__).resolve().parents[1]

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pamrun.env import PamWalkerEnv
+from pamrun.task.env import PamWalkerEnv
 
 
 def episode(coupling: str, dt: float) -> tuple[np.ndarray, float]:

@@ -3,7 +3,7 @@
     python benchmarks/robustness_cost.py [--ckpt agents/walker_td3_seed0.pt] [--episodes 50] [--workers 2] [--out DIR]
 
 Runs the suite (every perturbation of ``eval.suites.robustness``) through
-``pamrun.evaluate.run_suite`` and, in the same process as the baseline, the plain
+``pamrun.evaluation.evaluate.run_suite`` and, in the same process as the baseline, the plain
 evaluation of the same agents (``run_evaluation``, the nominal episodes with per-step
 data and figures) on the same seeds. Prints and appends to
 benchmarks/results/robustness_cost.jsonl: wall time, episodes, seconds per episode of
@@ -23,9 +23,9 @@ from pathlib import Path
 
 from hydra import compose, initialize_config_dir
 
-from pamrun import runtime  # noqa: F401  (the resolvers conf/ uses)
 from pamrun.config import CONF_DIR, register_configs, to_object
-from pamrun.evaluate import run_evaluation, run_suite
+from pamrun.evaluation.evaluate import run_evaluation, run_suite
+from pamrun.runs import machine  # noqa: F401  (the resolvers conf/ uses)
 
 RESULTS = Path(__file__).parent / "results" / "robustness_cost.jsonl"
 ROOT = Path(__file__).resolve().parents[1]

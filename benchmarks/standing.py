@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from pamrun.config import preset
-from pamrun.env import PamWalkerEnv
+from pamrun.task.env import PamWalkerEnv
 
 
 def stand(muscle: dict, seed: int, noise_rad: float) -> dict:

@@ -16,7 +16,7 @@ The sized robot stands passively at zero command, so an untrained actor (whose o
 start near 0) passes *stand* at the first evaluation. The row therefore also gives
 **stand, learned**: the first evaluation after the actor's first update
 (``train.actor_start_frames``, ``train.init_random_frames``) in which every episode stands
-(``pamrun.task.stands_learned``: the milestone at which ``train.walk_kvx``'s curriculum
+(``pamrun.task.criteria.stands_learned``: the milestone at which ``train.walk_kvx``'s curriculum
 starts walking; the row gives its frames as ``walk_kvx_from_frames``).
 
 The milestones and ``best_*`` come from the seeds the run selects its agents on (biased
@@ -53,9 +53,9 @@ GAIT = ("speed_mean", "pressure_change_mean", "hop_share_mean", "step_time_symme
 
 def milestones(run: Path) -> dict:
     """Wall time and frames to stand and to walk, and the best evaluation, from a run's files."""
-    from pamrun.rundir import RunFiles, read_evals, saved_config
-    from pamrun.runio import read_json
-    from pamrun.task import actor_learns_from, stands_learned
+    from pamrun.runs.directory import RunFiles, read_evals, saved_config
+    from pamrun.runs.files import read_json
+    from pamrun.task.criteria import actor_learns_from, stands_learned
 
     rows = read_evals(run)
     info = read_json(RunFiles(run).run_json)
@@ -82,10 +82,10 @@ def milestones(run: Path) -> dict:
 def held_out_evaluation(run: Path) -> dict | None:
     """The run's best_eval.pt on pamrun eval's held-out seeds (its defaults), or None."""
     from pamrun.config import Config
-    from pamrun.evaluate import held_out, load_agents
-    from pamrun.rollout import aggregate, evaluate_agents
-    from pamrun.rundir import RunFiles
-    from pamrun.runtime import usable_cores
+    from pamrun.evaluation.episodes import aggregate, evaluate_agents
+    from pamrun.evaluation.evaluate import held_out, load_agents
+    from pamrun.runs.directory import RunFiles
+    from pamrun.runs.machine import usable_cores
 
     best = RunFiles(run).best_eval
     if not best.exists():
@@ -117,7 +117,7 @@ def figure(runs: list[Path], png: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from pamrun.rundir import read_evals
+    from pamrun.runs.directory import read_evals
 
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     for run in runs:

@@ -7,7 +7,7 @@ Measures, in one run, with the thesis' networks (400/300) at batch 128, each mea
 1. ``pamrun train`` with TD3 (and DDPG) at one gradient update per frame: environment
    frames/s of the whole loop (collection + learning), from run.json, with the env stepped
    between updates and with ``train.async_collection=true`` (stepped in its own process);
-2. pamrun's TD3 update alone (``agents.Learner.update``: critics, actor, Adam, targets) on one batch;
+2. pamrun's TD3 update alone (``networks.Learner.update``: critics, actor, Adam, targets) on one batch;
 3. TorchRL's TD3 update alone (``TD3Loss`` critic/actor halves + Adam + ``SoftUpdate``), which
    pamrun used before 0.2;
 4. a plain-PyTorch TD3 update of the same networks and batch (CleanRL style): the floor;
@@ -32,10 +32,10 @@ from pathlib import Path
 
 import torch
 
-from pamrun import agents
 from pamrun.config import AlgoConfig
-from pamrun.rundir import RunFiles
-from pamrun.runio import read_json
+from pamrun.learning import networks
+from pamrun.runs.directory import RunFiles
+from pamrun.runs.files import read_json
 
 OBS, ACT, BATCH = 43, 10, 128
 
@@ -70,7 +70,7 @@ def _spec():
 
 def pamrun_td3_updates(n: int) -> float:
     """pamrun's own update (what ``pamrun train algo=td3`` runs per gradient step)."""
-    learner = agents.make_learner(AlgoConfig(name="td3", actor_update_every=2), OBS, ACT, _spec())
+    learner = networks.make_learner(AlgoConfig(name="td3", actor_update_every=2), OBS, ACT, _spec())
     batch = _batch()
     for _ in range(20):
         learner.update(batch)
@@ -84,7 +84,7 @@ def torchrl_td3_updates(n: int) -> float:
     from torchrl.objectives import SoftUpdate, TD3Loss
 
     cfg = AlgoConfig(name="td3")
-    actor, critic = agents.make_actor(cfg, OBS, ACT), ValueOperatorCritic(cfg)
+    actor, critic = networks.make_actor(cfg, OBS, ACT), ValueOperatorCritic(cfg)
     loss = TD3Loss(actor, critic, action_spec=_spec(), num_qvalue_nets=2, loss_function="l2", delay_actor=True,
                    delay_qvalue=True)
     loss.make_value_estimator(gamma=cfg.gamma)
@@ -111,14 +111,14 @@ def torchrl_td3_updates(n: int) -> float:
 def ValueOperatorCritic(cfg):  # noqa: N802 (a factory of TorchRL's critic wrapper)
     from torchrl.modules import ValueOperator
 
-    return ValueOperator(agents.make_critic(cfg, OBS, ACT), in_keys=["observation", "action"])
+    return ValueOperator(networks.make_critic(cfg, OBS, ACT), in_keys=["observation", "action"])
 
 
 def plain_td3_updates(n: int) -> float:
     """The same TD3 update in plain PyTorch (CleanRL style): the floor."""
     cfg = AlgoConfig(name="td3")
-    actor = agents.ThesisActor(OBS, ACT, (400, 300), 3e-3)
-    q1, q2 = agents.ThesisCritic(OBS, ACT, (400, 300), 3e-3), agents.ThesisCritic(OBS, ACT, (400, 300), 3e-3)
+    actor = networks.ThesisActor(OBS, ACT, (400, 300), 3e-3)
+    q1, q2 = networks.ThesisCritic(OBS, ACT, (400, 300), 3e-3), networks.ThesisCritic(OBS, ACT, (400, 300), 3e-3)
     actor_t, q1_t, q2_t = copy.deepcopy(actor), copy.deepcopy(q1), copy.deepcopy(q2)
     a_opt = torch.optim.Adam(actor.parameters(), 1e-3)
     q_opt = torch.optim.Adam(list(q1.parameters()) + list(q2.parameters()), 1e-3)

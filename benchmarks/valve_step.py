@@ -13,9 +13,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from pamrun import plots
+from pamrun.bench.lab import print_valve_table, valve_step_responses
 from pamrun.config import MuscleConfig
-from pamrun.lab import print_valve_table, valve_step_responses
+from pamrun.evaluation import figures
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -24,7 +24,7 @@ def main() -> None:
     results = valve_step_responses(MuscleConfig())
     path = ROOT / "benchmarks" / "results" / "valve_step.json"
     path.write_text(json.dumps(results))
-    plots.valve_step(path, ROOT / "docs" / "img" / "valve_step.png")
+    figures.valve_step(path, ROOT / "docs" / "img" / "valve_step.png")
     print_valve_table(results)
     print(f"Wrote {path.relative_to(ROOT)}, docs/img/valve_step.png")
 

@@ -7,4 +7,4 @@ from gymnasium.envs.registration import register
 
 __version__ = "0.1.0"
 
-register(id="pamrun/PamWalker-v0", entry_point="pamrun.env:PamWalkerEnv", max_episode_steps=None)
+register(id="pamrun/PamWalker-v0", entry_point="pamrun.task.env:PamWalkerEnv", max_episode_steps=None)

@@ -15,37 +15,36 @@ import logging
 import os
 import sys
 from pathlib import Path
-
 from typing import Any
 
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from pamrun import runtime  # noqa: F401  (registers the config resolvers)
 from pamrun.config import CONF_DIR, ConfigError, validate
+from pamrun.runs import machine  # noqa: F401  (registers the config resolvers)
 
 # command words -> (module, function, one-line help). Functions take the composed DictConfig.
 # A module may also define ``check_config(config)``: what its command needs beyond valid
 # values (e.g. ``pamrun eval``: a checkpoint to read), checked before its directory exists.
 COMMANDS: dict[str, tuple[str, str, str]] = {
-    "muscle step": ("pamrun.lab", "muscle_step", "step responses of one antagonistic pair vs thesis §10.1"),
-    "muscle calibrate": ("pamrun.lab", "muscle_calibrate", "fit the spring table S(P) to the §10.1 step responses"),
-    "muscle curves": ("pamrun.lab", "muscle_curves", "both force laws vs measured, and the surface (Figs 8.9, 8.10)"),
-    "muscle valve": ("pamrun.lab", "muscle_valve", "regulator step 0 -> 600 kPa: model=lag vs model=flow, rise times"),
-    "muscle hysteresis": ("pamrun.lab", "muscle_hysteresis", "a muscle cycled at one pressure: the loop, its area"),
-    "body": ("pamrun.lab", "body", "generate the robot: robot.xml, body.json, robot.png (thesis §8.1-8.2)"),
-    "openloop": ("pamrun.lab", "openloop", "pressure steps on each joint, torso fixed (thesis §10.2)"),
-    "capacity": ("pamrun.lab", "capacity", "muscle torque and stiffness vs standing and walking demand, per joint"),
-    "train": ("pamrun.train", "main", "train DDPG, TD3 or SAC on PamWalker-v0 with TorchRL (thesis §9)"),
-    "eval": ("pamrun.evaluate", "evaluate", "test saved agents in parallel, rank them, pick the best: ckpt=<path>"),
-    "export": ("pamrun.export", "export", "write an agent's policy as ONNX or TorchScript with its metadata: ckpt=<file>"),
-    "sweep": ("pamrun.sweep", "job", "trainings over a grid (-m a=1,2 b=x,y), each evaluated, summary at the end"),
-    "sweep summarize": ("pamrun.sweep", "summarize_command", "summary table and curves of a sweep: dir=<sweep dir>"),
-    "sweep optuna": ("pamrun.search", "optuna_search", "Optuna search, each trial averaged over seeds (sweep.optuna)"),
-    "plot training": ("pamrun.train", "plot_training", "redraw training.png of a run: dir=<run dir>"),
+    "muscle step": ("pamrun.bench.lab", "muscle_step", "step responses of one antagonistic pair vs thesis §10.1"),
+    "muscle calibrate": ("pamrun.bench.lab", "muscle_calibrate", "fit the spring table S(P) to the §10.1 step responses"),
+    "muscle curves": ("pamrun.bench.lab", "muscle_curves", "both force laws vs measured, and the surface (Figs 8.9, 8.10)"),
+    "muscle valve": ("pamrun.bench.lab", "muscle_valve", "regulator step 0 -> 600 kPa: model=lag vs model=flow, rise times"),
+    "muscle hysteresis": ("pamrun.bench.lab", "muscle_hysteresis", "a muscle cycled at one pressure: the loop, its area"),
+    "body": ("pamrun.bench.lab", "body", "generate the robot: robot.xml, body.json, robot.png (thesis §8.1-8.2)"),
+    "openloop": ("pamrun.bench.lab", "openloop", "pressure steps on each joint, torso fixed (thesis §10.2)"),
+    "capacity": ("pamrun.bench.lab", "capacity", "muscle torque and stiffness vs standing and walking demand, per joint"),
+    "train": ("pamrun.training.recipe", "main", "train DDPG, TD3 or SAC on PamWalker-v0 with TorchRL (thesis §9)"),
+    "eval": ("pamrun.evaluation.evaluate", "evaluate", "test saved agents in parallel, rank them, pick the best: ckpt=<path>"),
+    "export": ("pamrun.evaluation.export", "export", "write an agent's policy as ONNX or TorchScript with its metadata: ckpt=<file>"),
+    "sweep": ("pamrun.sweep.grid", "job", "trainings over a grid (-m a=1,2 b=x,y), each evaluated, summary at the end"),
+    "sweep summarize": ("pamrun.sweep.grid", "summarize_command", "summary table and curves of a sweep: dir=<sweep dir>"),
+    "sweep optuna": ("pamrun.sweep.search", "optuna_search", "Optuna search, each trial averaged over seeds (sweep.optuna)"),
+    "plot training": ("pamrun.training.recipe", "plot_training", "redraw training.png of a run: dir=<run dir>"),
 }
 # Commands composed from another primary config than conf/config.yaml.
-CONFIG_NAMES = {"sweep": "sweep"}
+CONFIG_NAMES = {"sweep": "config_sweep"}
 # Commands that only read a directory (dir=...): they write nothing of Hydra's there.
 READ_ONLY = ("sweep summarize", "plot training")
 # Config sections `pamrun <command> --help` documents (every key of them, with its doc).
@@ -149,7 +148,7 @@ def run_hydra_app(name: str, args: list[str]) -> None:
     if name == "sweep":
         args = sweep_args(args)
     if name == "sweep optuna" and not any(a.startswith("hydra.run.dir=") for a in args):
-        from pamrun.sweep import sweep_dir_for
+        from pamrun.sweep.grid import sweep_dir_for
 
         folder = sweep_dir_for(args, kind="optuna")  # the same command resumes the same study
         print(f"Study directory: {folder}")
@@ -168,8 +167,8 @@ def run_hydra_app(name: str, args: list[str]) -> None:
 
 
 def sweep_args(args: list[str]) -> list[str]:
-    """A sweep is always a multirun, in a folder named by its command line (see pamrun.sweep)."""
-    from pamrun.sweep import RUNTIME_KEYS, swept_keys, sweep_dir_for
+    """A sweep is always a multirun, in a folder named by its command line (see pamrun.sweep.grid)."""
+    from pamrun.sweep.grid import RUNTIME_KEYS, sweep_dir_for, swept_keys
 
     informational = {"--cfg", "-c", "--info", "-i", "--help", "-h", "--hydra-help"} & set(args)
     check_group_options(args)
@@ -191,7 +190,7 @@ def check_group_options(args: list[str]) -> None:
     creates a sweep folder for jobs that could never compose."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    from pamrun.sweep import task_overrides
+    from pamrun.sweep.grid import task_overrides
 
     for override in OverridesParser.create().parse_overrides(task_overrides(args)):
         group = override.key_or_group

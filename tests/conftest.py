@@ -9,8 +9,8 @@ import sys
 import pytest
 from hydra import compose, initialize_config_dir
 
-from pamrun import runtime  # noqa: F401  (registers the resolvers conf/sweep.yaml uses, as pamrun.cli does)
 from pamrun.config import CONF_DIR, Config, register_configs, to_object
+from pamrun.runs import machine  # noqa: F401  (registers the resolvers conf/config_sweep.yaml uses, as pamrun.cli does)
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 register_configs()

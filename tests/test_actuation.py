@@ -1,4 +1,4 @@
-"""The muscle-joint couplings of pamrun.actuation: one class each, and the compiled step's arguments."""
+"""The muscle-joint couplings of pamrun.physics.actuation: one class each, and the compiled step's arguments."""
 
 from __future__ import annotations
 
@@ -7,9 +7,14 @@ import inspect
 import numpy as np
 import pytest
 
-from pamrun import kernels
-from pamrun.actuation import CompiledKinematicCoupling, KinematicCoupling, MuscleDrive, ThesisCoupling
 from pamrun.config import BodyConfig, MuscleConfig
+from pamrun.physics import kernels
+from pamrun.physics.actuation import (
+    CompiledKinematicCoupling,
+    KinematicCoupling,
+    MuscleDrive,
+    ThesisCoupling,
+)
 from tests.conftest import thesis_muscle
 
 

@@ -8,14 +8,14 @@ import pytest
 import torch
 from torchrl.data import Bounded
 
-from pamrun import agents
 from pamrun.config import AlgoConfig, ConfigError
+from pamrun.learning import networks
 
 SPEC = Bounded(-torch.ones(10), torch.ones(10), (10,))
 
 
 def test_actor_is_table_9_1():
-    actor = agents.make_actor(AlgoConfig(), 43, 10).module
+    actor = networks.make_actor(AlgoConfig(), 43, 10).module
     layers = [m for m in actor.net]
     assert [type(m).__name__ for m in layers] == ["Linear", "ReLU", "Linear", "ReLU", "Linear", "Tanh"]
     assert [(m.in_features, m.out_features) for m in layers if isinstance(m, torch.nn.Linear)] == [
@@ -25,7 +25,7 @@ def test_actor_is_table_9_1():
 
 
 def test_critic_is_table_9_2():
-    critic = agents.make_critic(AlgoConfig(), 43, 10)
+    critic = networks.make_critic(AlgoConfig(), 43, 10)
     assert (critic.obs_path[0].in_features, critic.obs_path[0].out_features) == (43, 400)
     assert (critic.obs_path[2].in_features, critic.obs_path[2].out_features) == (400, 300)
     assert (critic.action_path.in_features, critic.action_path.out_features) == (10, 300)
@@ -60,7 +60,7 @@ def _copy_into(params, nets) -> None:
             flat[key].copy_(stacked if flat[key].dim() == stacked.dim() else stacked[0])
 
 
-def _torchrl_loss(name: str, learner: agents.Learner):
+def _torchrl_loss(name: str, learner: networks.Learner):
     """TorchRL's own loss for this algorithm, holding copies of the learner's networks and targets."""
     from tensordict.nn import TensorDictModule
     from torchrl.modules import ValueOperator
@@ -90,7 +90,7 @@ def test_learner_losses_equal_torchrl(name):
     the critic's gradients."""
     torch.manual_seed(0)
     cfg = AlgoConfig(name=name, policy_noise=0.0)
-    learner = agents.make_learner(cfg, 43, 10, SPEC)
+    learner = networks.make_learner(cfg, 43, 10, SPEC)
     with torch.no_grad():  # targets that differ from the networks, so a swapped network would show
         for p in [*learner.actor_target.parameters(), *learner.critic_targets.parameters()]:
             p.add_(0.05 * torch.randn_like(p))
@@ -119,7 +119,7 @@ def test_learner_losses_equal_torchrl(name):
 def test_learner_updates_fit_the_critic_and_move_the_targets(name):
     """Updates on a fixed batch reduce the critic loss, and the targets follow the networks by tau."""
     torch.manual_seed(0)
-    learner = agents.make_learner(AlgoConfig(name=name, critic_lr=1e-3), 43, 10, SPEC)
+    learner = networks.make_learner(AlgoConfig(name=name, critic_lr=1e-3), 43, 10, SPEC)
     batch = _batch()
     first = _critic_loss(learner, batch)
     actor_before = learner.actor.module.net[0].weight.detach().clone()
@@ -136,19 +136,19 @@ def test_learner_updates_fit_the_critic_and_move_the_targets(name):
 
 
 def test_td3_has_two_independent_critics():
-    learner = agents.make_learner(AlgoConfig(name="td3"), 43, 10, SPEC)
+    learner = networks.make_learner(AlgoConfig(name="td3"), 43, 10, SPEC)
     assert len(learner.critics) == 2
     assert not torch.equal(learner.critics[0].obs_path[0].weight, learner.critics[1].obs_path[0].weight)
-    assert len(agents.make_learner(AlgoConfig(name="ddpg"), 43, 10, SPEC).critics) == 1
+    assert len(networks.make_learner(AlgoConfig(name="ddpg"), 43, 10, SPEC).critics) == 1
 
 
 def test_noise_schedule_follows_matlab_variance_decay():
     cfg = AlgoConfig(noise_variance=0.5, noise_decay=1e-5, noise_variance_min=0.0)
-    assert agents.noise_scale(cfg, 0) == 1.0
+    assert networks.noise_scale(cfg, 0) == 1.0
     # variance 0.5 * (1 - 1e-5)^k, so the std halves after ln(4) / 1e-5 ~ 138,629 steps
-    assert agents.noise_scale(cfg, 138_629) == pytest.approx(0.5, rel=1e-3)
+    assert networks.noise_scale(cfg, 138_629) == pytest.approx(0.5, rel=1e-3)
     floor = AlgoConfig(noise_variance=0.5, noise_decay=1e-5, noise_variance_min=0.05)
-    assert agents.noise_scale(floor, 10_000_000) == pytest.approx(math.sqrt(0.1))
+    assert networks.noise_scale(floor, 10_000_000) == pytest.approx(math.sqrt(0.1))
 
 
 def test_exploration_modules_take_the_scale():
@@ -157,11 +157,11 @@ def test_exploration_modules_take_the_scale():
 
     for name in ("ddpg", "td3"):
         cfg = AlgoConfig(name=name)
-        actor = agents.make_actor(cfg, 43, 10)
-        explore = agents.make_exploration(cfg, actor, SPEC)
+        actor = networks.make_actor(cfg, 43, 10)
+        explore = networks.make_exploration(cfg, actor, SPEC)
         spread = {}
         for scale in (0.1, 0.2):
-            agents.set_noise_scale(explore, scale)
+            networks.set_noise_scale(explore, scale)
             td = TensorDict({"observation": torch.zeros(4000, 43), "is_init": torch.ones(4000, 1, dtype=torch.bool)},
                             [4000])
             with torch.no_grad():
@@ -181,7 +181,7 @@ def test_bad_algo_values():
 def test_critic_only_updates_leave_the_actor_alone():
     """``update(actor=False)`` (train.actor_start_frames): the critics learn, the actor does not."""
     torch.manual_seed(0)
-    learner = agents.make_learner(AlgoConfig(name="td3", actor_update_every=2), 43, 10, SPEC)
+    learner = networks.make_learner(AlgoConfig(name="td3", actor_update_every=2), 43, 10, SPEC)
     actor = [p.detach().clone() for p in learner.actor_params]
     critic = [p.detach().clone() for p in learner.critic_params]
     batch = _batch()
@@ -199,7 +199,7 @@ def test_sac_log_probability_is_the_squashed_gaussian():
     from torch.distributions import Normal, TanhTransform, TransformedDistribution
 
     torch.manual_seed(0)
-    actor = agents.SquashedGaussianActor(43, 10, (400, 300), 3e-3)
+    actor = networks.SquashedGaussianActor(43, 10, (400, 300), 3e-3)
     obs = torch.randn(64, 43)
     action, log_prob = actor.sample(obs)
     h = actor.net[:4](obs)
@@ -226,7 +226,7 @@ def test_sac_sample_is_the_hand_written_tanh_gaussian():
     as the hand-written tanh-Gaussian, bit for bit, with the same log-probabilities and gradients
     to float precision, saturated actions (|a| = 1 in float32) included."""
     torch.manual_seed(0)
-    actor = agents.SquashedGaussianActor(43, 10, (400, 300), 3e-3)
+    actor = networks.SquashedGaussianActor(43, 10, (400, 300), 3e-3)
     with torch.no_grad():  # means up to ~45 and a wider spread: a third of the actions saturate
         actor.net[4].weight.mul_(2000)
         actor.log_std_head.weight.mul_(3)
@@ -250,7 +250,7 @@ def test_sac_sample_is_the_hand_written_tanh_gaussian():
 def test_sac_learns_its_critics_and_temperature():
     """SAC updates fit the critics, and alpha falls while the policy's entropy is above its target."""
     torch.manual_seed(0)
-    learner = agents.make_learner(AlgoConfig(name="sac", critic_lr=1e-3, actor_lr=3e-3), 43, 10, SPEC)
+    learner = networks.make_learner(AlgoConfig(name="sac", critic_lr=1e-3, actor_lr=3e-3), 43, 10, SPEC)
     assert len(learner.critics) == 2 and learner.log_alpha.item() == 0.0
     batch = _batch()
     first = _critic_loss(learner, batch)
@@ -258,16 +258,16 @@ def test_sac_learns_its_critics_and_temperature():
         learner.update(batch)
     assert _critic_loss(learner, batch) < 0.5 * first
     assert learner.log_alpha.item() < 0  # entropy of a fresh policy (std ~1) is far above -10
-    assert set(learner.policy_state()) == set(agents.ThesisActor(43, 10, (400, 300), 3e-3).state_dict())
+    assert set(learner.policy_state()) == set(networks.ThesisActor(43, 10, (400, 300), 3e-3).state_dict())
     state = learner.state_dict()
-    other = agents.make_learner(AlgoConfig(name="sac"), 43, 10, SPEC)
+    other = networks.make_learner(AlgoConfig(name="sac"), 43, 10, SPEC)
     other.load_state_dict(state, learner.updates)
     assert other.log_alpha.item() == learner.log_alpha.item()
 
 
 def test_concat_critic_takes_observation_and_action_at_its_input():
-    critic = agents.make_critic(AlgoConfig(critic="concat"), 43, 10)
-    assert isinstance(critic, agents.ConcatCritic) and critic.net[0].in_features == 53
+    critic = networks.make_critic(AlgoConfig(critic="concat"), 43, 10)
+    assert isinstance(critic, networks.ConcatCritic) and critic.net[0].in_features == 53
     obs, act = torch.randn(4, 43), torch.randn(4, 10)
     assert critic(obs, act).shape == (4, 1)
     assert not torch.equal(critic(obs, act), critic(obs, -act))  # the action matters

@@ -6,8 +6,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from pamrun import body
 from pamrun.config import BodyConfig, ConfigError
+from pamrun.physics import body
 
 
 def test_anthropometry_reproduces_table_8_2():

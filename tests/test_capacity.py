@@ -9,10 +9,23 @@ import mujoco
 import numpy as np
 import pytest
 
-from pamrun.actuation import MuscleDrive
-from pamrun.capacity import _BELOW, REQUIRED_MARGIN, WALKING_PEAK_NM_PER_KG, WALKING_RANGE_DEG, analyse
-from pamrun.config import LEG_JOINTS, BodyConfig, ConfigError, JointCounts, MuscleConfig, upgrade_saved_config
-from pamrun.env import PamWalkerEnv, space_sizes
+from pamrun.config import (
+    LEG_JOINTS,
+    BodyConfig,
+    ConfigError,
+    JointCounts,
+    MuscleConfig,
+    upgrade_saved_config,
+)
+from pamrun.physics.actuation import MuscleDrive
+from pamrun.physics.capacity import (
+    _BELOW,
+    REQUIRED_MARGIN,
+    WALKING_PEAK_NM_PER_KG,
+    WALKING_RANGE_DEG,
+    analyse,
+)
+from pamrun.task.env import PamWalkerEnv, space_sizes
 from tests.conftest import run_pamrun, thesis_muscle
 
 
@@ -60,8 +73,8 @@ def test_air_per_gait_cycle_at_the_walking_demand(default_capacity):
     low pressure, and the air is one fill of each muscle from that low pressure to it, at
     constant volume (kinematic: the contraction follows the angle only): V (p - p_low) in
     normal litres, 2 legs x muscles per direction; the joints sum to the robot's total."""
-    from pamrun.capacity import _static_torque_nm
-    from pamrun.muscle import MUSCLE_INNER_DIAMETER_M, muscle_volume_l
+    from pamrun.physics.capacity import _static_torque_nm
+    from pamrun.physics.muscle import MUSCLE_INNER_DIAMETER_M, muscle_volume_l
 
     m, body = MuscleConfig(), BodyConfig()
     drive = MuscleDrive(m, body)

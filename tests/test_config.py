@@ -5,7 +5,15 @@ from __future__ import annotations
 import pytest
 from hydra.errors import ConfigCompositionException
 
-from pamrun.config import AlgoConfig, BodyConfig, ConfigError, MuscleConfig, RewardConfig, TrainConfig, to_object
+from pamrun.config import (
+    AlgoConfig,
+    BodyConfig,
+    ConfigError,
+    MuscleConfig,
+    RewardConfig,
+    TrainConfig,
+    to_object,
+)
 from tests.conftest import compose_config, run_pamrun
 
 

@@ -13,9 +13,9 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import pamrun  # noqa: F401  (registers the env)
-from pamrun.body import JOINTS
 from pamrun.config import ConfigError, RewardConfig
-from pamrun.env import PamWalkerEnv, quat_to_euler
+from pamrun.physics.body import JOINTS
+from pamrun.task.env import PamWalkerEnv, quat_to_euler
 from tests.conftest import thesis_muscle
 
 
@@ -85,7 +85,7 @@ def test_reward_is_its_weights_times_unweighted_terms(env):
     """info holds each term unweighted (``reward_unweighted``, REWARD_KEYS order) and weighted
     (``reward_terms``, by weight name); the features are the state's quantities (Table 9.3's
     Vx, y^2, (z - z0)^2, sum(a^2), Ts / Tf) and the reward is the weights' sum over them."""
-    from pamrun.env import REWARD_KEYS
+    from pamrun.task.env import REWARD_KEYS
 
     _, info0 = env.reset(seed=1)
     assert list(info0["reward_unweighted"]) == [0.0] * len(REWARD_KEYS)  # reset: the same keys, zeros

@@ -12,15 +12,18 @@ import numpy as np
 import pytest
 import torch
 
-from pamrun.checkpoints import CheckpointError, find_checkpoints, load_agent
-from pamrun.config import ConfigError, to_object
-from pamrun.env import N_JOINTS, OBS_SIZE, PamWalkerEnv
-from pamrun.config import EvalConfig
-from pamrun.evaluate import load_agents, rank
-from pamrun.rollout import aggregate, env_kwargs, evaluate_agents, run_episode
-from pamrun.task import stood, walk_passed
+from pamrun.config import ConfigError, EvalConfig, to_object
+from pamrun.evaluation.episodes import (
+    aggregate,
+    env_kwargs,
+    evaluate_agents,
+    run_episode,
+)
+from pamrun.evaluation.evaluate import load_agents, rank
+from pamrun.learning.checkpoints import CheckpointError, find_checkpoints, load_agent
+from pamrun.task.criteria import stood, walk_passed
+from pamrun.task.env import N_JOINTS, OBS_SIZE, PamWalkerEnv
 from tests.conftest import compose_config, run_pamrun
-
 
 ECFG = EvalConfig()  # the walk test: 10 s, |y| <= 0.5 m, at least 7 m
 
@@ -200,8 +203,8 @@ class _RunsCode:
 
 def _fake_agent(tmp_path):
     """An untrained actor as an agent file (for env-level tests)."""
-    from pamrun.agents import ThesisActor
-    from pamrun.checkpoints import agent_record
+    from pamrun.learning.checkpoints import agent_record
+    from pamrun.learning.networks import ThesisActor
 
     path = tmp_path / "untrained.pt"
     cfg = to_object(compose_config())
@@ -210,8 +213,8 @@ def _fake_agent(tmp_path):
 
 
 def _bad_files(folder, good):
-    from pamrun.agents import ThesisActor
-    from pamrun.checkpoints import agent_record
+    from pamrun.learning.checkpoints import agent_record
+    from pamrun.learning.networks import ThesisActor
 
     folder.mkdir()
     malicious = _RunsCode()

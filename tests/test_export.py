@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import torch
 
-from pamrun.body import JOINTS
-from pamrun.checkpoints import agent_record, load_agent
 from pamrun.config import to_object
-from pamrun.env import OBSERVATION_UNITS, observation_structure
-from pamrun.export import actor_of, metadata, read_metadata
+from pamrun.evaluation.export import actor_of, metadata, read_metadata
+from pamrun.learning.checkpoints import agent_record, load_agent
+from pamrun.physics.body import JOINTS
+from pamrun.task.env import OBSERVATION_UNITS, observation_structure
 from tests.conftest import compose_config, run_pamrun
 
 pytest.importorskip("onnx")
@@ -22,8 +22,8 @@ pytest.importorskip("onnx")
 def _agent_file(tmp_path, *overrides: str):
     """An untrained actor with large random weights (actions spread over [-1, 1]) as an agent
     file, its robot the thesis' muscle model so its scaling differs from the defaults."""
-    from pamrun.agents import ThesisActor
-    from pamrun.env import space_sizes
+    from pamrun.learning.networks import ThesisActor
+    from pamrun.task.env import space_sizes
 
     cfg = to_object(compose_config("muscle=thesis", *overrides))
     obs_size, action_size = space_sizes(cfg.muscle)
@@ -111,11 +111,11 @@ def test_independent_command_is_one_action_per_muscle(tmp_path):
 
 
 def test_units_name_every_observation_block_as_the_env_docs_do():
-    import pamrun.env
+    import pamrun.task.env
 
     assert set(OBSERVATION_UNITS) == set(observation_structure(speed_command=True, gait_clock=True))
     for name, unit in OBSERVATION_UNITS.items():
-        row = next(line for line in pamrun.env.__doc__.splitlines() if f"| ``{name}`` |" in line)
+        row = next(line for line in pamrun.task.env.__doc__.splitlines() if f"| ``{name}`` |" in line)
         assert row.rstrip(" |").endswith(unit), (name, row)
 
 
@@ -140,8 +140,8 @@ def test_the_shipped_walker_exports_to_its_own_actions(tmp_path):
     import onnxruntime as ort
 
     from pamrun.config import Config
-    from pamrun.env import PamWalkerEnv
-    from pamrun.rollout import env_kwargs, make_policy
+    from pamrun.evaluation.episodes import env_kwargs, make_policy
+    from pamrun.task.env import PamWalkerEnv
 
     path = str(Path(__file__).parents[1] / "agents" / "walker_td3_seed0.pt")
     agent = load_agent(path)

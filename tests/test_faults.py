@@ -21,8 +21,8 @@ import pytest
 import torch
 from torchrl.data import Bounded
 
-from pamrun import agents
 from pamrun.config import AlgoConfig
+from pamrun.learning import networks
 from tests.conftest import run_pamrun
 
 SMOKE = ["train=smoke", "algo=td3", "train.init_random_frames=200", "train.updates_per_frame=0.25", "seed=4"]
@@ -168,7 +168,7 @@ def test_td3_resumed_between_actor_updates_logs_its_losses():
     """Resumed at updates = 49 (TD3 updates the actor every 2nd step), the 50th update logs
     the losses before the actor has one: nan, not a crash."""
     spec = Bounded(-torch.ones(10), torch.ones(10), (10,))
-    learner = agents.make_learner(AlgoConfig(name="td3", actor_update_every=2), 43, 10, spec)
+    learner = networks.make_learner(AlgoConfig(name="td3", actor_update_every=2), 43, 10, spec)
     learner.updates = 49
     from tensordict import TensorDict
 
@@ -236,7 +236,7 @@ def test_a_full_disk_stops_the_run_with_a_message_not_a_bus_error(small_disk):
 
 def test_git_commit_says_when_the_code_is_not_the_commit(tmp_path):
     """run.json's git_commit gets ``-dirty`` when tracked files differ from the commit."""
-    from pamrun.runio import git_commit
+    from pamrun.runs.files import git_commit
 
     git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-C", str(tmp_path)]
     subprocess.run(["git", "init", "-q", str(tmp_path)], check=True)
@@ -257,9 +257,9 @@ def test_a_buffer_from_an_earlier_reward_is_named_not_trained_on(tmp_path, missi
     from tensordict import TensorDict
     from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
-    from pamrun.checkpoints import CheckpointError, check_reward_terms
-    from pamrun.curriculum import FEATURES
-    from pamrun.env import REWARD_KEYS
+    from pamrun.learning.checkpoints import CheckpointError, check_reward_terms
+    from pamrun.learning.curriculum import FEATURES
+    from pamrun.task.env import REWARD_KEYS
 
     width = len(REWARD_KEYS) - missing
     saved = TensorDictReplayBuffer(storage=LazyTensorStorage(10))

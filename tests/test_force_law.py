@@ -1,4 +1,4 @@
-"""Force laws (pamrun/force_laws.py): ``muscle.force_law=tondu_lopez`` against its formula, its fit to
+"""Force laws (pamrun/physics/force_laws.py): ``muscle.force_law=tondu_lopez`` against its formula, its fit to
 Table 8.4 and the measured DMSP-20-300, on every path (numpy, compiled kernel, env, CLI)."""
 
 from __future__ import annotations
@@ -11,8 +11,16 @@ import pytest
 
 from pamrun.config import FORCE_LAW_NAMES, ConfigError, MuscleConfig, preset, to_object
 from pamrun.config.robot import MUSCLE_INNER_DIAMETER_M
-from pamrun.force_laws import (FORCE_LAWS, MARTENS_BOBLAN_DMSP20_300, TONDU_LOPEZ_K, TONDU_LOPEZ_THETA0_DEG,
-                               ThesisPolynomial, TonduLopez, polynomial_fit_grid, zero_force_contraction_pct)
+from pamrun.physics.force_laws import (
+    FORCE_LAWS,
+    MARTENS_BOBLAN_DMSP20_300,
+    TONDU_LOPEZ_K,
+    TONDU_LOPEZ_THETA0_DEG,
+    ThesisPolynomial,
+    TonduLopez,
+    polynomial_fit_grid,
+    zero_force_contraction_pct,
+)
 from tests.conftest import compose_config, run_pamrun
 
 TL = {"force_law": "tondu_lopez"}
@@ -134,7 +142,7 @@ def test_unknown_law_fails_naming_force_law():
 
 def _drives(**muscle):
     """The default robot's drive with the compiled kernel and with the numpy reference."""
-    from pamrun.env import PamWalkerEnv
+    from pamrun.task.env import PamWalkerEnv
 
     envs = [PamWalkerEnv(muscle={**muscle, "kernel": k}) for k in ("numba", "numpy")]
     assert envs[0].drive.compiled and not envs[1].drive.compiled
@@ -180,7 +188,7 @@ def test_compiled_kernel_gives_the_numpy_forces_with_tondu_lopez():
 def test_env_builds_steps_and_the_default_robot_stands_2_s():
     """muscle.force_law=tondu_lopez on the default robot: zero action holds it up for 2 s (it
     stands the full 10 s, as with the polynomial: checked when the law was added)."""
-    from pamrun.env import PamWalkerEnv
+    from pamrun.task.env import PamWalkerEnv
 
     env = PamWalkerEnv(muscle=TL)
     assert isinstance(env.drive.pairs.law, TonduLopez)
@@ -195,7 +203,7 @@ def test_env_builds_steps_and_the_default_robot_stands_2_s():
 
 def test_thesis_coupling_steps_with_tondu_lopez():
     """The dynamics path (muscle=thesis: FirstOrderPairDynamics) takes the law too."""
-    from pamrun.env import PamWalkerEnv
+    from pamrun.task.env import PamWalkerEnv
 
     env = PamWalkerEnv(muscle={**preset("muscle", "thesis"), **TL})
     assert isinstance(env.drive.pairs.law, TonduLopez)

@@ -8,11 +8,18 @@ import math
 import numpy as np
 import pytest
 
-from pamrun import plots
-from pamrun.body import JOINTS
 from pamrun.config import BodyConfig, MuscleConfig
-from pamrun.gait import GAIT_METRICS, GaitSpec, contacts, episode_metrics, gait_cycle, touchdowns
-from pamrun.muscle import air_nl, muscle_volume_l
+from pamrun.evaluation import figures
+from pamrun.evaluation.metrics import (
+    GAIT_METRICS,
+    GaitSpec,
+    contacts,
+    episode_metrics,
+    gait_cycle,
+    touchdowns,
+)
+from pamrun.physics.body import JOINTS
+from pamrun.physics.muscle import air_nl, muscle_volume_l
 
 DT = 0.025
 L0, D0 = 0.26, 0.020  # a DMSP-20-260
@@ -326,7 +333,7 @@ def test_gait_figure(tmp_path):
     listed = {"agent": "a", "episode": 3, "seed": 4,  # as read from episodes.jsonl
               "steps": {k: np.asarray(v).tolist() for k, v in walking["steps"].items()}}
     for name, episodes in (("walk", [walking, fallen, listed]), ("fallen", [fallen]), ("lifted", [lifted])):
-        png = plots.gait(episodes, LIMITS, 20.0, tmp_path / f"{name}.png")
+        png = figures.gait(episodes, LIMITS, 20.0, tmp_path / f"{name}.png")
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000, name
 
 

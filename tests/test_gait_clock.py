@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from pamrun.config import ConfigError, to_object
-from pamrun.env import REWARD_KEYS, PamWalkerEnv, foot_miss, swing_weights
-from pamrun.symmetry import action_map, mirror_state, observation_map
+from pamrun.task.env import REWARD_KEYS, PamWalkerEnv, foot_miss, swing_weights
+from pamrun.task.symmetry import action_map, mirror_state, observation_map
 from tests.conftest import compose_config
 from tests.test_train import TINY, train_here
 
@@ -151,9 +151,9 @@ def test_impossible_gait_clocks_fail_naming_the_key(override, key):
 def test_a_clocked_agent_trains_mirrored_evaluates_and_exports_its_clock(tmp_path):
     """A run with the clock (mirrored transitions included) saves agents of 45 inputs; pamrun
     eval runs them with their clock; the export's metadata names the clock's block and period."""
-    from pamrun.evaluate import load_agents
-    from pamrun.export import metadata
-    from pamrun.rollout import evaluate_agents
+    from pamrun.evaluation.episodes import evaluate_agents
+    from pamrun.evaluation.evaluate import load_agents
+    from pamrun.evaluation.export import metadata
 
     run = tmp_path / "run"
     assert train_here(run, *TINY, "train.max_frames=400", "train.eval_every_frames=0", "train.mirror=true",

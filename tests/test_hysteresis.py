@@ -1,4 +1,4 @@
-"""Muscle hysteresis, ``muscle.spring.hysteresis`` (pamrun/hysteresis.py), against analytic numbers.
+"""Muscle hysteresis, ``muscle.spring.hysteresis`` (pamrun/physics/hysteresis.py), against analytic numbers.
 
 An elasto-slide element (stiffness k, slip force f) cycled through +- A (A > f / k) encloses a
 parallelogram of area 4 f (A - f / k): the energy it dissipates per cycle. N elements: the sum.
@@ -11,17 +11,17 @@ import json
 import numpy as np
 import pytest
 
-from pamrun.actuation import MuscleDrive
 from pamrun.config import BodyConfig, ConfigError, MuscleConfig, to_object
 from pamrun.config.robot import HYSTERESIS_LAWS, RegulatorConfig, SpringConfig
-from pamrun.hysteresis import (
+from pamrun.physics.actuation import MuscleDrive
+from pamrun.physics.hysteresis import (
     HYSTERESIS,
     M_PER_PCT,
     MaxwellSlip,
     hysteresis_loop,
     loop_area_j,
 )
-from pamrun.muscle import AntagonisticPairs
+from pamrun.physics.muscle import AntagonisticPairs
 from tests.conftest import compose_config, run_pamrun, thesis_muscle
 
 SLIP = {"hysteresis": "maxwell_slip"}
@@ -143,7 +143,7 @@ def test_kinematic_coupling_dissipates_the_analytic_energy_per_cycle(kernel):
 
 def _envs(**muscle):
     """The same robot with hysteresis, stepped by the compiled kernel and by the numpy reference."""
-    from pamrun.env import PamWalkerEnv
+    from pamrun.task.env import PamWalkerEnv
 
     envs = [PamWalkerEnv(muscle={"spring": SLIP, **muscle, "kernel": k}) for k in ("numba", "numpy")]
     assert envs[0].drive.compiled and not envs[1].drive.compiled
@@ -251,7 +251,7 @@ def test_a_bad_hysteresis_parameter_names_its_key(key, value):
 @pytest.mark.parametrize(("seed", "noise", "kernel"), [(0, 0.0, "numba"), (3, 0.02, "numba"), (0, 0.0, "numpy")])
 def test_default_robot_stands_ten_seconds_with_hysteresis(seed, noise, kernel):
     """As the zero-action stand of tests/test_capacity.py, with the Maxwell-slip elements on."""
-    from pamrun.env import PamWalkerEnv
+    from pamrun.task.env import PamWalkerEnv
 
     env = PamWalkerEnv(muscle={"kernel": kernel, "spring": SLIP}, env={"reset_noise_rad": noise})
     env.reset(seed=seed)

@@ -1,4 +1,5 @@
-"""pamrun's layers point one way: no import cycle, and config/ imports no other pamrun module.
+"""pamrun's layers point one way: each package imports only the packages below it in
+:data:`LAYERS`, no module import cycle, and the package graph at most 8 layers deep.
 
 Every ``import``/``from ... import`` of a pamrun module is read with ``ast`` (function-level
 imports included, since they are edges too), not by importing anything.
@@ -10,8 +11,8 @@ import ast
 from pathlib import Path
 
 import pamrun
-from pamrun import muscle
 from pamrun.config import DYNAMICS_NAMES, FORCE_LAW_NAMES
+from pamrun.physics import muscle
 
 PACKAGE = Path(pamrun.__file__).parent
 
@@ -83,7 +84,7 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def test_no_import_cycle():
     graph = import_graph()
-    assert len(graph) > 15 and "pamrun.evaluate" in graph["pamrun.sweep"]  # the graph is really read
+    assert len(graph) > 15 and "pamrun.evaluation.evaluate" in graph["pamrun.sweep.grid"]  # the graph is really read
     assert cycles(graph) == []
 
 
@@ -91,10 +92,80 @@ def test_the_cycle_finder_finds_one():
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
 
-def test_config_is_the_bottom_layer():
-    upward = {name: sorted(t for t in targets if not t.startswith("pamrun.config"))
-              for name, targets in import_graph().items() if name.startswith("pamrun.config")}
-    assert {k: v for k, v in upward.items() if v} == {}
+# pamrun's packages from the bottom up: a package may import its own modules and those of the
+# packages before it, never one after it. Packages on one line are side by side (neither imports
+# the other). ``pamrun`` itself (its __init__ only registers the env with Gymnasium) sits below
+# them all, and pamrun.cli above them all.
+LAYERS = (
+    ("config",),
+    ("runs", "physics"),
+    ("task",),
+    ("learning",),
+    ("evaluation",),
+    ("training", "bench"),
+    ("sweep",),
+)
+MAX_DEPTH = 8  # longest chain of package imports, the top-level modules included
+
+
+def package_of(module: str) -> str:
+    """``pamrun.task.env`` -> ``task``; ``pamrun`` -> ``root``; ``pamrun.cli`` -> ``top``."""
+    parts = module.split(".")
+    if len(parts) == 1:
+        return "root"
+    return parts[1] if len(parts) > 2 or (PACKAGE / parts[-1]).is_dir() else "top"
+
+
+def ranks() -> dict[str, int]:
+    return {"root": -1, **{name: i for i, layer in enumerate(LAYERS) for name in layer}, "top": len(LAYERS)}
+
+
+def package_graph(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    out: dict[str, set[str]] = {}
+    for name, targets in graph.items():
+        out.setdefault(package_of(name), set()).update(package_of(t) for t in targets)
+    return {k: v - {k} for k, v in out.items()}
+
+
+def depth(graph: dict[str, set[str]]) -> int:
+    """The longest import chain, counted in modules (packages) along it."""
+    memo: dict[str, int] = {}
+
+    def d(v: str) -> int:
+        if v not in memo:
+            memo[v] = 1 + max((d(w) for w in graph[v]), default=0)
+        return memo[v]
+
+    return max(map(d, graph))
+
+
+def test_every_package_has_a_layer_and_a_one_line_docstring():
+    packages = {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists()}
+    assert packages == {name for layer in LAYERS for name in layer}
+    for name in packages:
+        doc = ast.get_docstring(ast.parse((PACKAGE / name / "__init__.py").read_text()))
+        assert doc and "\n" not in doc.strip(), f"pamrun.{name} needs a one-line docstring"
+
+
+def test_packages_import_only_the_layers_below():
+    rank = ranks()
+    upward = {(package_of(m), package_of(t)) for m, targets in import_graph().items() for t in targets
+              if package_of(m) != package_of(t) and rank[package_of(t)] >= rank[package_of(m)]}
+    assert upward == set()
+
+
+def test_the_layer_check_sees_an_upward_import():
+    graph = import_graph()
+    graph["pamrun.physics.body"] = graph["pamrun.physics.body"] | {"pamrun.task.env"}
+    assert ("physics", "task") in {(a, b) for a, bs in package_graph(graph).items() for b in bs}
+    assert ranks()["task"] > ranks()["physics"]
+
+
+def test_the_package_graph_is_shallow():
+    packages = package_graph(import_graph())
+    assert "evaluation" in packages["training"]  # the graph is really read
+    assert depth(packages) <= MAX_DEPTH
+    assert depth({"a": {"b"}, "b": {"c"}, "c": set()}) == 3
 
 
 def test_config_names_the_muscle_registries():

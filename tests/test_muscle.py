@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from pamrun.config import MuscleConfig, PairConfig, RegulatorConfig, to_object
-from pamrun.muscle import (
+from pamrun.physics.muscle import (
     AntagonisticPairs,
     FirstOrderPairDynamics,
     Regulator,
@@ -176,7 +176,7 @@ def test_pair_command_and_torque():
 
 def _drives(**muscle):
     """The same robot's drive with the compiled kernel and with the numpy reference, one model each."""
-    from pamrun.env import PamWalkerEnv
+    from pamrun.task.env import PamWalkerEnv
 
     envs = [PamWalkerEnv(muscle={**muscle, "kernel": k}) for k in ("numba", "numpy")]
     assert envs[0].drive.compiled and not envs[1].drive.compiled  # two paths, really

@@ -1,4 +1,4 @@
-"""Domain randomisation during training (pamrun/randomize.py) and the gait reward options
+"""Domain randomisation during training (pamrun/task/randomize.py) and the gait reward options
 (reward.kstop, reward.kspeed, train.walk_weights)."""
 
 from __future__ import annotations
@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 
 from pamrun.config import ConfigError, to_object
-from pamrun.body import JOINTS
-from pamrun.env import REWARD_KEYS, PamWalkerEnv
+from pamrun.physics.body import JOINTS
+from pamrun.task.env import REWARD_KEYS, PamWalkerEnv
 from tests.conftest import compose_config
 
 
 def walker(cfg, names, prob=1.0, reach=1.0, count=1):
-    from pamrun.randomize import RandomizedWalker
+    from pamrun.task.randomize import RandomizedWalker
 
     kwargs = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}
     return RandomizedWalker(kwargs, {n: cfg.eval.perturbations[n] for n in names}, prob, reach, count)
@@ -79,7 +79,7 @@ def test_a_perturbed_episode_combines_distinct_perturbations(cfg):
 def test_weights_draw_a_perturbation_more_often(cfg):
     """train.randomize_weights: a name of weight 20 among three comes first with chance 20/22
     (the uniform draw's 1/3); names it leaves out keep weight 1; the same seed, the same draws."""
-    from pamrun.randomize import RandomizedWalker
+    from pamrun.task.randomize import RandomizedWalker
 
     names = ["mass_heavy", "friction_low", "lag_x2"]
     kwargs = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}
@@ -105,7 +105,7 @@ def test_a_name_can_reach_further_than_the_others(cfg):
     """train.randomize_reaches: friction_low's strength is drawn in [0, 2] (its own reach: the
     floor down to x0.4), mass_heavy's in [0, 1] (train.randomize_reach); a reach that makes a
     value impossible (friction x0.7 at strength 4: negative) fails naming its key before a run."""
-    from pamrun.randomize import RandomizedWalker, check
+    from pamrun.task.randomize import RandomizedWalker, check
 
     names = ["mass_heavy", "friction_low"]
     kwargs = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}
@@ -174,7 +174,7 @@ def test_walk_weights_reweight_any_term(cfg):
     """train.walk_weights: the walking stage re-weights any reward term of replay samples."""
     import torch
 
-    from pamrun.curriculum import WalkCurriculum
+    from pamrun.learning.curriculum import WalkCurriculum
 
     cfg.train.walk_kvx, cfg.train.walk_weights, cfg.train.actor_start_frames = None, {"kspeed": 3.0}, 0
     curriculum = WalkCurriculum(cfg)
@@ -214,9 +214,9 @@ def test_slip_term_is_the_stance_feet_speed():
 
 def test_step_term_charges_each_touchdown_its_miss_of_the_step_length():
     """kstep's feature is minus (s - L*)^2 / L* summed over the feet that touch down in the step,
-    with s and the touchdowns as pamrun.gait finds them in the same episode's info (one
+    with s and the touchdowns as pamrun.evaluation.metrics finds them in the same episode's info (one
     definition), and 0 in every other step; L* is env.step_length_m."""
-    from pamrun import gait
+    from pamrun.evaluation import metrics
 
     env = PamWalkerEnv(reward={"kstep": 2.0}, env={"step_length_m": 0.3})
     _, info = env.reset(seed=3)
@@ -233,7 +233,7 @@ def test_step_term_charges_each_touchdown_its_miss_of_the_step_length():
         terms.append(info["reward_terms"]["kstep"])
         if fell:
             break
-    table = gait.step_table(rows, np.asarray(rows["foot_force_n"]) > env.contact_n)
+    table = metrics.step_table(rows, np.asarray(rows["foot_force_n"]) > env.contact_n)
     expected = np.zeros(len(features))
     for row, _, length, _ in table:
         expected[row] -= (length - 0.3) ** 2 / 0.3
@@ -246,11 +246,11 @@ def test_step_term_charges_each_touchdown_its_miss_of_the_step_length():
 
 
 def test_air_term_and_info_meter_the_supply_air():
-    """info["air_nl"] per step sums to pamrun.muscle.air_nl over the same states (the gait
+    """info["air_nl"] per step sums to pamrun.physics.muscle.air_nl over the same states (the gait
     metric's rule), kair's feature is minus it, and standing on constant pressures draws
     little."""
-    from pamrun.body import LEG_JOINTS, SIDES
-    from pamrun.muscle import MUSCLE_INNER_DIAMETER_M, air_nl
+    from pamrun.physics.body import LEG_JOINTS, SIDES
+    from pamrun.physics.muscle import MUSCLE_INNER_DIAMETER_M, air_nl
 
     env = PamWalkerEnv(reward={"kair": 0.5})
     _, info = env.reset(seed=0)

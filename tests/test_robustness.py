@@ -10,11 +10,12 @@ import numpy as np
 import pytest
 import torch
 
-from pamrun.checkpoints import load_agent
 from pamrun.config import ConfigError, Perturbation, to_object
-from pamrun.env import OBS_BASE, N_JOINTS, OBS_SIZE, PamWalkerEnv
-from pamrun.evaluate import check_config, held_out, selection_block
-from pamrun.rollout import aggregate, env_kwargs, perturb, wilson_interval
+from pamrun.evaluation.episodes import aggregate, env_kwargs, wilson_interval
+from pamrun.evaluation.evaluate import check_config, held_out, selection_block
+from pamrun.learning.checkpoints import load_agent
+from pamrun.task.env import N_JOINTS, OBS_BASE, OBS_SIZE, PamWalkerEnv
+from pamrun.task.spec import perturb
 from tests.conftest import compose_config, run_pamrun
 
 # --------------------------------------------------------------------------- intervals
@@ -54,8 +55,8 @@ def test_a_pass_rate_comes_with_its_count_and_interval():
 
 
 def _agent(tmp_path, meta):
-    from pamrun.agents import ThesisActor
-    from pamrun.checkpoints import agent_record
+    from pamrun.learning.checkpoints import agent_record
+    from pamrun.learning.networks import ThesisActor
 
     path = tmp_path / "a.pt"
     torch.save(agent_record(ThesisActor(OBS_SIZE, N_JOINTS, (400, 300), 3e-3).state_dict(),
@@ -75,7 +76,7 @@ def test_the_default_evaluation_is_held_out_from_the_selection_seeds(tmp_path):
 
 
 def test_training_selects_on_the_selection_block():
-    from pamrun.evaluate import TrainingEvaluator
+    from pamrun.evaluation.evaluate import TrainingEvaluator
 
     cfg = to_object(compose_config("train.eval_episodes=2", "eval.episode_s=0.5", "eval.walk_duration_s=0.5",
                                    "eval.selection_seed=7"))
@@ -89,7 +90,7 @@ def _select_evaluator(walk_distance_m: float, shoves: int | None = None):
     """A training evaluator whose nominal block a standing actor passes (1 s; a sway back of a
     few mm is no fall) when ``walk_distance_m`` is below 0, selecting also under a shove it
     cannot stand (``shoves`` episodes of it: train.select_episodes_of; None: select_episodes)."""
-    from pamrun.evaluate import TrainingEvaluator
+    from pamrun.evaluation.evaluate import TrainingEvaluator
 
     overrides = ["train.eval_episodes=2", "train.select_episodes=3", "eval.episode_s=1.0", "eval.walk_duration_s=1.0",
                  "+eval.perturbations.shove={values:{env:{push_impulse_ns:[0,150,0],push_time_s:0.1,"
@@ -130,7 +131,7 @@ def test_selection_under_perturbation_is_checked_with_the_config(override, key):
 
 
 def test_training_keeps_the_agent_that_holds_under_perturbation():
-    from pamrun.evaluate import TrainingEvaluator
+    from pamrun.evaluation.evaluate import TrainingEvaluator
 
     evaluator = _select_evaluator(-1.0)
     evaluator.close()
@@ -270,8 +271,8 @@ def test_the_robustness_suite_end_to_end(tmp_path):
     """Two agents x three perturbations (one of them the user's own) through ``pamrun eval``."""
     folder = tmp_path / "agents"
     folder.mkdir()
-    from pamrun.agents import ThesisActor
-    from pamrun.checkpoints import agent_record
+    from pamrun.learning.checkpoints import agent_record
+    from pamrun.learning.networks import ThesisActor
 
     for seed in (0, 1):
         torch.manual_seed(seed)

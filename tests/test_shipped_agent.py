@@ -38,8 +38,9 @@ import numpy as np
 import pytest
 
 from pamrun.config import Perturbation, to_object
-from pamrun.evaluate import load_agents
-from pamrun.rollout import aggregate, evaluate_agents, perturb
+from pamrun.evaluation.episodes import aggregate, evaluate_agents
+from pamrun.evaluation.evaluate import load_agents
+from pamrun.task.spec import perturb
 from tests.conftest import compose_config, run_pamrun
 
 AGENT = Path(__file__).parents[1] / "agents" / "walker_td3_seed0.pt"

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from pamrun.config import ConfigError, to_object
-from pamrun.env import REWARD_KEYS, PamWalkerEnv
+from pamrun.task.env import REWARD_KEYS, PamWalkerEnv
 from tests.conftest import compose_config
 from tests.test_train import TINY, train_here
 
@@ -39,7 +39,7 @@ def test_the_env_draws_and_shows_the_commanded_speed():
     f = dict(zip(REWARD_KEYS, info["reward_unweighted"]))
     vx = told.data.qvel[0]
     assert f["kspeed"] == pytest.approx(math.exp(-(((vx - speeds[3]) / told.env_cfg.speed_sigma_m_s) ** 2)))
-    from pamrun.symmetry import observation_map
+    from pamrun.task.symmetry import observation_map
 
     index, sign = observation_map(10, speed_command=True)
     assert index[-1] == 43 and sign[-1] == 1.0  # the mirror image is told the same speed
@@ -62,8 +62,8 @@ def test_impossible_speed_commands_fail_naming_the_key(override, key):
 def test_a_speed_commanded_agent_trains_with_mirroring_and_is_told_the_asked_speed(tmp_path):
     """A run with the command in its observation (mirrored transitions included) saves agents of
     that size; pamrun eval's loader gives each episode eval.speed_m_s, held, and runs them."""
-    from pamrun.evaluate import load_agents
-    from pamrun.rollout import evaluate_agents
+    from pamrun.evaluation.episodes import evaluate_agents
+    from pamrun.evaluation.evaluate import load_agents
 
     run = tmp_path / "run"
     assert train_here(run, *TINY, "train.max_frames=400", "train.eval_every_frames=0", "train.mirror=true",

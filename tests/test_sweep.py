@@ -16,7 +16,14 @@ import pytest
 import torch
 
 from pamrun.config import CONF_DIR, register_configs
-from pamrun.sweep import collect_jobs, compare, group_key, mean_ci, sweep_dir_for, swept_keys
+from pamrun.sweep.grid import (
+    collect_jobs,
+    compare,
+    group_key,
+    mean_ci,
+    sweep_dir_for,
+    swept_keys,
+)
 from tests.conftest import run_pamrun
 
 TINY = ["train=smoke", "train.max_frames=400", "train.init_random_frames=200", "train.updates_per_frame=0.25",
@@ -199,14 +206,14 @@ def test_the_slurm_launcher_config_composes():
 
     register_configs()
     with initialize_config_dir(str(CONF_DIR), version_base="1.3"):
-        cfg = compose("sweep", overrides=["hydra/launcher=slurm", "hydra.launcher.partition=cpu", "seed=0"],
+        cfg = compose("config_sweep", overrides=["hydra/launcher=slurm", "hydra.launcher.partition=cpu", "seed=0"],
                       return_hydra_config=True)
     launcher = cfg.hydra.launcher
     assert launcher._target_.endswith("SlurmLauncher")
     assert launcher.partition == "cpu" and launcher.cpus_per_task == 8 and launcher.timeout_min == 2880
     assert type(instantiate(launcher)).__name__ == "SlurmLauncher"
     with initialize_config_dir(str(CONF_DIR), version_base="1.3"):
-        local = compose("sweep", overrides=["sweep.jobs=3"], return_hydra_config=True)
+        local = compose("config_sweep", overrides=["sweep.jobs=3"], return_hydra_config=True)
     assert local.hydra.launcher._target_.endswith("JoblibLauncher") and local.hydra.launcher.n_jobs == 3
 
 

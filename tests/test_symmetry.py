@@ -1,4 +1,4 @@
-"""The walker's mirror symmetry (pamrun/symmetry.py): a reflection of a reflection is the
+"""The walker's mirror symmetry (pamrun/task/symmetry.py): a reflection of a reflection is the
 identity, and the physics agrees: from a mirrored state, mirrored commands give mirrored
 observations."""
 
@@ -8,8 +8,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from pamrun.env import PamWalkerEnv
-from pamrun.symmetry import action_map, mirror_state, observation_map
+from pamrun.task.env import PamWalkerEnv
+from pamrun.task.symmetry import action_map, mirror_state, observation_map
 
 
 @pytest.mark.parametrize("n_actions", [10, 20])
@@ -51,8 +51,8 @@ def test_a_mirrored_batch_holds_the_mirror_images(cfg):
     """train.mirror stores mirror_batch(batch): observations and actions reflected, rewards kept."""
     import torch
 
-    from pamrun.symmetry import mirror_batch
-    from pamrun.train import make_env
+    from pamrun.task.symmetry import mirror_batch
+    from pamrun.training.recipe import make_env
 
     env = make_env(cfg, seed=0)
     batch = env.rollout(30)

@@ -9,11 +9,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from pamrun import body
-from pamrun.capacity import _gravity_loads, analyse
 from pamrun.config import BodyConfig, ConfigError, MuscleConfig, to_object
 from pamrun.config.robot import MTP_PEAK_MOMENT_NM_PER_KG
-from pamrun.env import PamWalkerEnv
+from pamrun.physics import body
+from pamrun.physics.capacity import _gravity_loads, analyse
+from pamrun.task.env import PamWalkerEnv
 from tests.conftest import compose_config, run_pamrun
 
 DT = 0.0025  # env.physics_dt_s

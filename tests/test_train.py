@@ -18,17 +18,17 @@ TINY = ["train=smoke", "train.max_frames=600", "train.init_random_frames=200", "
 
 def train_here(run_dir, *overrides: str) -> str:
     """``pamrun train overrides...`` in this process (no Hydra, no subprocess); its status."""
-    from pamrun.train import train
+    from pamrun.training.recipe import train
 
     return train(to_object(compose_config(*overrides)), run_dir, list(overrides))
 
 
 def test_train_in_process_is_reproducible(tmp_path):
-    """``pamrun.train.train(cfg, out)`` runs in this process, with no Hydra: the same seed gives
+    """``pamrun.training.recipe.train(cfg, out)`` runs in this process, with no Hydra: the same seed gives
     the same episodes.csv, every column but wall time, also with the walking recipe's start-pose
     noise (whose first episode once started from an unseeded reset), and a run.json that says so."""
-    from pamrun.rundir import read_episodes
-    from pamrun.train import train
+    from pamrun.runs.directory import read_episodes
+    from pamrun.training.recipe import train
 
     cfg = to_object(compose_config(*TINY, "train.max_frames=400", "train.eval_every_frames=0"))
     assert cfg.env.reset_noise_rad > 0 and cfg.algo.name == "td3"  # the default recipe: experiment=walk
@@ -147,7 +147,7 @@ def test_evaluations_during_training(tmp_path):
     """A smoke run evaluates its actor every 400 frames: evals.csv, eval/* in TensorBoard, best_eval.pt."""
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
-    from pamrun.checkpoints import find_checkpoints, load_agent
+    from pamrun.learning.checkpoints import find_checkpoints, load_agent
 
     run_dir = tmp_path / "evals"
     assert train_here(run_dir, "algo=td3", "train=smoke", "seed=2") == "max_frames"
@@ -173,10 +173,10 @@ def test_evaluations_during_training(tmp_path):
 
 def test_evaluation_is_deterministic_and_matches_pamrun_eval(tmp_path, cfg):
     """The evaluator's numbers for an actor are pamrun eval's for the same agent file."""
-    from pamrun.agents import make_actor
-    from pamrun.checkpoints import agent_record, load_agent
-    from pamrun.evaluate import TrainingEvaluator
-    from pamrun.rollout import aggregate, env_kwargs, evaluate_agents
+    from pamrun.evaluation.episodes import aggregate, env_kwargs, evaluate_agents
+    from pamrun.evaluation.evaluate import TrainingEvaluator
+    from pamrun.learning.checkpoints import agent_record, load_agent
+    from pamrun.learning.networks import make_actor
 
     torch.manual_seed(0)
     cfg.train.eval_episodes, cfg.eval.episodes, cfg.eval.episode_s, cfg.eval.walk_duration_s = 3, 3, 2.0, 2.0
@@ -211,7 +211,7 @@ def test_stop_on_walk(tmp_path):
 
 @pytest.mark.slow
 def test_resume_forgets_evaluations_after_the_checkpoint(tmp_path):
-    from pamrun.rundir import read_evals, truncate_logs
+    from pamrun.runs.directory import read_evals, truncate_logs
 
     run_dir = tmp_path / "r"
     train_here(run_dir, *TINY, "train.eval_every_frames=200", "train.eval_episodes=1")
@@ -240,8 +240,8 @@ def test_walk_curriculum_reweights_replay_samples_to_the_reward_with_walk_kvx(cf
     """``train.walk_kvx``: once walking, a sample from the replay buffer has the reward the env
     pays with reward.kvx = walk_kvx for the same step (same start, same actions), from the
     unweighted terms the buffer stores; before, the env's own reward."""
-    from pamrun.curriculum import WalkCurriculum
-    from pamrun.train import make_buffer, make_env
+    from pamrun.learning.curriculum import WalkCurriculum
+    from pamrun.training.recipe import make_buffer, make_env
 
     cfg.train.walk_kvx, cfg.train.init_random_frames, cfg.train.actor_start_frames = 4.0, 1000, 0
     rollouts = []
@@ -305,7 +305,7 @@ def test_walk_curriculum_in_a_run(tmp_path, capsys):
 def test_resume_takes_a_new_budget_and_names_what_it_ignores(tmp_path):
     """``resume=<dir> train.max_frames=...`` extends a finished run; any other value on a resume's
     command line is named as ignored, and the run keeps its own config."""
-    from pamrun.rundir import saved_config
+    from pamrun.runs.directory import saved_config
 
     run_dir = tmp_path / "extend"
     proc = run_pamrun("train", *TINY, "train.eval_every_frames=0", f"hydra.run.dir={run_dir}")

@@ -1,4 +1,4 @@
-"""The flow-limited valve, ``muscle.regulator.model=flow`` (pamrun/valve.py), against analytic numbers."""
+"""The flow-limited valve, ``muscle.regulator.model=flow`` (pamrun/physics/valve.py), against analytic numbers."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from pamrun.config import ConfigError, MuscleConfig, RegulatorConfig, to_object
-from pamrun.muscle import Regulator, muscle_volume_l
-from pamrun.valve import FlowRegulator, make_regulator, volume_cubic_l
+from pamrun.physics.muscle import Regulator, muscle_volume_l
+from pamrun.physics.valve import FlowRegulator, make_regulator, volume_cubic_l
 from tests.conftest import compose_config
 
 # The default robot's muscle: a DMSP-40 (40 mm inner diameter) of 300 mm.
@@ -178,8 +178,8 @@ def test_the_supply_must_reach_the_muscles_top_pressure():
 
 def test_lag_is_the_default_and_untouched():
     """model=lag builds the plain Regulator (no valve state), and both kernels follow its closed form."""
-    from pamrun.env import PamWalkerEnv
-    from pamrun.kernels import P_MODEL
+    from pamrun.physics.kernels import P_MODEL
+    from pamrun.task.env import PamWalkerEnv
 
     assert RegulatorConfig().model == "lag"
     assert type(make_regulator(MuscleConfig(), np.zeros((10, 2)))) is Regulator
@@ -197,7 +197,7 @@ def test_lag_is_the_default_and_untouched():
 
 def _drives(**muscle):
     """The same robot's drive with the compiled kernel and with the numpy reference."""
-    from pamrun.env import PamWalkerEnv
+    from pamrun.task.env import PamWalkerEnv
 
     envs = [PamWalkerEnv(muscle={**muscle, "kernel": k}) for k in ("numba", "numpy")]
     assert envs[0].drive.compiled and not envs[1].drive.compiled
@@ -242,7 +242,7 @@ def test_compiled_valve_matches_numpy_step_by_step(regulator):
 
 
 def _stands(seconds: float, seed: int = 0, noise: float = 0.0, **regulator) -> None:
-    from pamrun.env import PamWalkerEnv
+    from pamrun.task.env import PamWalkerEnv
 
     env = PamWalkerEnv(muscle={"regulator": {"model": "flow", **regulator}}, env={"reset_noise_rad": noise})
     assert isinstance(env.drive.pairs.regulator, FlowRegulator)
@@ -267,7 +267,7 @@ def test_default_robot_stands_ten_seconds_under_flow(seed, noise, regulator):
 def test_valve_bench_reports_flow_slower_than_lag():
     """pamrun muscle valve's numbers: the lag's 10-90 % rise is 2.2 lag_s whatever the volume; the
     valve's is longer, and longer for a bigger volume (20 % vs 0 %, two muscles vs one)."""
-    from pamrun.lab import valve_step_responses
+    from pamrun.bench.lab import valve_step_responses
 
     results = valve_step_responses(MuscleConfig(), duration_s=0.4, dt_s=0.001)
     lag = [c for c in results["cases"] if c["model"] == "lag"]

@@ -1,17 +1,14 @@
-"""Typed configuration of pamrun (Hydra structured configs).
+"""Typed configuration: the dataclasses that hold every default, and the checks that name a bad key."""
 
-Every dataclass here is the schema of one config group under ``conf/``; its defaults are
-the thesis values, each with the section it comes from (``../shared/THESIS.md``). YAML
-files in ``conf/`` select and override them. Hydra rejects unknown keys and wrong types
-while composing; :func:`validate` then checks values (a negative height, tau <= 0, a
-pressure table that is not monotone) and raises :class:`ConfigError` naming the full
-key, before any run directory is created (``pamrun.cli.ValidateConfig`` runs it as a Hydra
-callback). This package is the bottom layer: it imports no other pamrun module.
-
-The schemas live by subject: :mod:`pamrun.config.robot` (muscle, body),
-:mod:`pamrun.config.task` (reward, env), :mod:`pamrun.config.learning` (algo, train) and
-:mod:`pamrun.config.experiments` (eval, sweep, pair); all are importable from here.
-"""
+# Every dataclass here is the schema of one config group under ``conf/``; its defaults are the
+# thesis values, each with the section it comes from. YAML files in ``conf/`` select and override
+# them. Hydra rejects unknown keys and wrong types while composing; :func:`validate` then checks
+# values (a negative height, tau <= 0, a pressure table that is not monotone) and raises
+# :class:`ConfigError` naming the full key, before any run directory is created
+# (``pamrun.cli.ValidateConfig`` runs it as a Hydra callback). This package is the bottom layer:
+# it imports no other pamrun module. The schemas live by subject: robot (muscle, body), task
+# (reward, env), learning (algo, train) and experiments (eval, sweep, pair); all are importable
+# from here.
 
 from __future__ import annotations
 
@@ -24,13 +21,34 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
 from pamrun.config.checks import CONF_DIR, ConfigError, _require
-from pamrun.config.experiments import (JOB_METRICS, PERTURBABLE_SECTIONS, RANK_METRICS, EvalConfig, OptunaConfig, PairConfig,
-                                       Perturbation, StepExperiment, flatten,
-                                       SweepConfig)
+from pamrun.config.experiments import (
+    JOB_METRICS,
+    PERTURBABLE_SECTIONS,
+    RANK_METRICS,
+    EvalConfig,
+    OptunaConfig,
+    PairConfig,
+    Perturbation,
+    StepExperiment,
+    SweepConfig,
+    flatten,
+)
 from pamrun.config.learning import AlgoConfig, TrainConfig
-from pamrun.config.robot import (DYNAMICS_NAMES, FORCE_LAW_NAMES, LEG_JOINTS, SPRING_FILE, BodyConfig, JointAngles,
-                                 JointCounts, JointRadii, MuscleConfig, RegulatorConfig, SpringConfig,
-                                 check_muscle_stretch, check_toe_stiffness)
+from pamrun.config.robot import (
+    DYNAMICS_NAMES,
+    FORCE_LAW_NAMES,
+    LEG_JOINTS,
+    SPRING_FILE,
+    BodyConfig,
+    JointAngles,
+    JointCounts,
+    JointRadii,
+    MuscleConfig,
+    RegulatorConfig,
+    SpringConfig,
+    check_muscle_stretch,
+    check_toe_stiffness,
+)
 from pamrun.config.task import EnvConfig, RewardConfig
 
 __all__ = ["CONF_DIR", "SPRING_FILE", "JOB_METRICS", "RANK_METRICS", "FORCE_LAW_NAMES", "DYNAMICS_NAMES", "ConfigError",

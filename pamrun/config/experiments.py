@@ -9,14 +9,13 @@ from typing import Any, Optional
 
 from pamrun.config.checks import ConfigError, _non_negative, _positive, _require
 
-
-# Aggregates an agent can be ranked by (``eval.rank_by``; pamrun/evaluate.py computes them);
+# Aggregates an agent can be ranked by (``eval.rank_by``; pamrun/evaluation/evaluate.py computes them);
 # larger is better unless prefixed '-'.
 RANK_METRICS = ("walk_pass_rate", "walk_pass_ci_low", "stand_rate", "distance_mean", "distance_min", "return_mean", "duration_mean", "speed_mean",
                 "fall_rate", "max_abs_y_mean", "max_abs_y_max", "pressure_change_mean")
 
 
-# The sections of an agent's robot and task a perturbation may change (pamrun.checkpoints.ENV_SECTIONS).
+# The sections of an agent's robot and task a perturbation may change (pamrun.learning.checkpoints.ENV_SECTIONS).
 PERTURBABLE_SECTIONS = ("body", "muscle", "reward", "env")
 
 
@@ -90,7 +89,7 @@ def _robustness_perturbations() -> dict[str, Perturbation]:
 def _model_perturbations() -> dict[str, Perturbation]:
     """The models suite (``eval.suite=models``): the agent's robot under each pneumatic model
     beyond the thesis', so a policy's transfer between models is measured. Each is the model's
-    option as it ships (pamrun/valve.py, pamrun/hysteresis.py, pamrun/force_laws.py, body.toe)."""
+    option as it ships (pamrun/physics/valve.py, pamrun/physics/hysteresis.py, pamrun/physics/force_laws.py, body.toe)."""
     return {
         "nominal": Perturbation("the evaluation as is"),
         "valve_flow": Perturbation("flow-limited valve (muscle.regulator.model=flow)",
@@ -198,7 +197,7 @@ class EvalConfig:
                          f"unknown perturbation {name!r}; known: {', '.join(self.perturbations)}")
 
 
-# Per-job results a sweep summarises and Optuna can optimise (see pamrun/sweep.py).
+# Per-job results a sweep summarises and Optuna can optimise (see pamrun/sweep/grid.py).
 JOB_METRICS = ("final_avg_reward", "best_distance_m", "walk_pass_rate", "frames_to_first_save")
 
 

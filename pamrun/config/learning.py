@@ -84,7 +84,7 @@ class TrainConfig:
     # checkpoints/best_eval.pt (the best agent by eval.rank_by).
     eval_every_frames: int = 20_000  # evaluate the actor this often; 0 = never
     eval_episodes: int = 10  # episodes per evaluation (the walk test's 10)
-    # Selection under perturbation (pamrun/evaluate.py, TrainingEvaluator): once an evaluation has a
+    # Selection under perturbation (pamrun/evaluation/evaluate.py, TrainingEvaluator): once an evaluation has a
     # nominal pass, it also runs select_episodes episodes under each of these eval.perturbations, and
     # best_eval.pt is the agent with the best walk pass rate over all of them. [] = nominal only.
     select_perturbations: list[str] = field(default_factory=list)  # e.g. [friction_low, lag_x2, push_forward]
@@ -100,10 +100,10 @@ class TrainConfig:
     walk_kvx: Optional[float] = None
     # The walking stage's other weights, any reward key (e.g. {kspeed: 3.0}), re-weighted the same way.
     walk_weights: dict[str, float] = field(default_factory=dict)
-    # Domain randomisation (pamrun/randomize.py): each episode, with probability randomize_prob,
+    # Domain randomisation (pamrun/task/randomize.py): each episode, with probability randomize_prob,
     # randomize_count of these eval.perturbations (the robustness suite's), each at a strength drawn
     # in [0, randomize_reach] of the way to it. [] = off. The evaluations during training stay nominal.
-    mirror: bool = False  # also store each transition's left-right mirror image in the replay buffer (pamrun/symmetry.py)
+    mirror: bool = False  # also store each transition's left-right mirror image in the replay buffer (pamrun/task/symmetry.py)
     randomize: list[str] = field(default_factory=list)  # names in eval.perturbations, e.g. [mass_heavy, lag_x2]
     randomize_prob: float = 0.5  # share of episodes with a perturbation
     randomize_reach: float = 1.0  # strength drawn uniformly in [0, this]; > 1 goes beyond the suite's sizes

@@ -13,12 +13,12 @@ from pamrun.config.checks import CONF_DIR, _non_negative, _positive, _require
 # The hinges of one leg, hip to ankle (thesis §8.1, Table 8.3): the one list of them. The
 # per-joint tables below (JointCounts, JointRadii, JointAngles and BodyConfig's
 # ``<joint>_limits_deg``) have one field per name, in this order (tests/test_body.py checks
-# it), and ``pamrun.body.JOINTS`` names each leg's hinges from it.
+# it), and ``pamrun.physics.body.JOINTS`` names each leg's hinges from it.
 LEG_JOINTS = ("hip_pitch", "hip_roll", "knee", "ankle_pitch", "ankle_roll")
 
 # --------------------------------------------------------------------------- muscle
 
-# Regulator dynamics pamrun/valve.py implements (RegulatorConfig.model).
+# Regulator dynamics pamrun/physics/valve.py implements (RegulatorConfig.model).
 REGULATOR_MODELS = ("lag", "flow")
 
 
@@ -35,7 +35,7 @@ class RegulatorConfig:
     (VUB) found off-the-shelf regulating valves "too heavy and too slow" for walking. We
     take the fast end, a first-order lag of 50 ms (``lag_s``), for the default robot.
 
-    ``model`` picks the regulator's dynamics (pamrun/valve.py): ``lag``, that lag with
+    ``model`` picks the regulator's dynamics (pamrun/physics/valve.py): ``lag``, that lag with
     unlimited flow (the default, unchanged), or ``flow``, the same lag whose rate of change
     is capped by what a proportional valve can flow into (or out of) the muscle's current
     volume: ISO 6358 flow through the sonic conductance derived from ``nominal_flow_nl_min``
@@ -50,9 +50,9 @@ class RegulatorConfig:
     min_pressure_kpa: float = 10.0  # 0.1 bar
     max_pressure_kpa: float = 1000.0  # 10 bar
     lag_s: float = 0.05  # first-order time constant [s]; 0 = ideal (the thesis)
-    model: str = "lag"  # lag: first-order lag, unlimited flow; flow: its rate capped by the valve (pamrun/valve.py)
+    model: str = "lag"  # lag: first-order lag, unlimited flow; flow: its rate capped by the valve (pamrun/physics/valve.py)
     # Festo, proportional directional control valve MPYE datasheet: MPYE-5-1/8-HF-010-B, standard nominal flow rate
-    # qnN = 700 l/min, which Festo measures from p1 = 6 bar to p2 = 5 bar (gauge; pamrun.valve.NOMINAL_FLOW_*_KPA).
+    # qnN = 700 l/min, which Festo measures from p1 = 6 bar to p2 = 5 bar (gauge; pamrun.physics.valve.NOMINAL_FLOW_*_KPA).
     # (The same datasheet gives 350 l/min for the low-flow MPYE-5-1/8-LF, which public valve models quote.)
     nominal_flow_nl_min: float = 700.0  # the valve's standard nominal flow qnN [normal l/min] (MPYE-5-1/8-HF)
     critical_pressure_ratio: float = 0.528  # ISO 6358 b (choked below it); the datasheet has none: an ideal nozzle's
@@ -102,7 +102,7 @@ def _read_spring_file(mtime_ns: int) -> dict[str, tuple[float, ...]]:
     return {k: tuple(float(v) for v in data[k]) for k in ("band_edges_kpa", "stiffness_n_per_m")}
 
 
-# Muscle hysteresis laws pamrun/hysteresis.py implements (SpringConfig.hysteresis; a test keeps the two in step).
+# Muscle hysteresis laws pamrun/physics/hysteresis.py implements (SpringConfig.hysteresis; a test keeps the two in step).
 HYSTERESIS_LAWS = ("none", "maxwell_slip")
 
 
@@ -116,7 +116,7 @@ class SpringConfig:
     ``[band_edges_kpa[k], band_edges_kpa[k+1])``; pressures past the last edge use the
     last band.
 
-    ``hysteresis`` names the muscle's hysteresis law (pamrun/hysteresis.py): ``none``, one
+    ``hysteresis`` names the muscle's hysteresis law (pamrun/physics/hysteresis.py): ``none``, one
     force-contraction curve for both directions (the thesis), or ``maxwell_slip``, elasto-slide
     elements (stiffness ``slip_stiffness_n_per_m``, slip force ``slip_force_n``, both scaled by
     P / ``slip_reference_pressure_kpa``) whose force opposes the muscle's on contraction and
@@ -126,9 +126,9 @@ class SpringConfig:
 
     band_edges_kpa: list[float] = field(default_factory=lambda: _calibrated_spring()["band_edges_kpa"])  # [kPa]
     stiffness_n_per_m: list[float] = field(default_factory=lambda: _calibrated_spring()["stiffness_n_per_m"])  # S [N/m]
-    hysteresis: str = "none"  # none (one force-contraction curve, the thesis) or maxwell_slip (pamrun/hysteresis.py)
+    hysteresis: str = "none"  # none (one force-contraction curve, the thesis) or maxwell_slip (pamrun/physics/hysteresis.py)
     # Maxwell-slip elements (one list entry each) of the DMSP-20-260 at slip_reference_pressure_kpa. No
-    # published DMSP value: assumed (pamrun/hysteresis.py), a loop 2 sum(f_i) = 75 N wide at 6 bar.
+    # published DMSP value: assumed (pamrun/physics/hysteresis.py), a loop 2 sum(f_i) = 75 N wide at 6 bar.
     slip_stiffness_n_per_m: list[float] = field(
         default_factory=lambda: [50000.0, 16000.0, 6000.0])  # k_i [N/m]; assumed: break-away f_i/k_i 0.25-2.1 mm
     slip_force_n: list[float] = field(
@@ -176,12 +176,12 @@ MUSCLE_RATED_FORCE_N = {"DMSP-10": 630.0, "DMSP-20": 1500.0, "DMSP-40": 6000.0}
 MUSCLE_INNER_DIAMETER_M = {"DMSP-10": 0.010, "DMSP-20": 0.020, "DMSP-40": 0.040}
 FITTED_SIZE = "DMSP-20"
 COUPLINGS = ("thesis", "kinematic")
-# Names of the force laws and muscle dynamics pamrun/muscle.py implements (its FORCE_LAWS and
+# Names of the force laws and muscle dynamics pamrun/physics/muscle.py implements (its FORCE_LAWS and
 # DYNAMICS registries hold one class per name; a test keeps the two in step).
 FORCE_LAW_NAMES = ("thesis_polynomial", "tondu_lopez")
 DYNAMICS_NAMES = ("first_order",)
 COMMANDS = ("antagonistic", "independent")
-# How MuscleDrive steps the kinematic coupling: pamrun/kernels.py (compiled) or numpy (the reference).
+# How MuscleDrive steps the kinematic coupling: pamrun/physics/kernels.py (compiled) or numpy (the reference).
 KERNELS = ("numba", "numpy")
 
 
@@ -274,7 +274,7 @@ class MuscleConfig:
       ``independent`` gives 20 actions, V = V0 + dV a per muscle, so a policy sets each
       pair's co-contraction (stiffness) as well as its torque. Zero action is V0 in both.
     * ``kernel``: how the kinematic coupling's muscle step is computed, ``numba`` (one compiled
-      call per muscle step, pamrun/kernels.py) or ``numpy`` (the reference, several times
+      call per muscle step, pamrun/physics/kernels.py) or ``numpy`` (the reference, several times
       slower); both give the same results to float rounding. The thesis coupling is numpy only.
     """
 
@@ -292,7 +292,7 @@ class MuscleConfig:
     command: str = "antagonistic"  # antagonistic (10 actions, the thesis) or independent (20)
     v0_v: float = 3.0  # common command voltage V0; thesis 2.12 V (§9.5)
     dv_max_v: float = 3.0  # |dV| bound; thesis 0.71 V (§9.5), i.e. 1.4-2.8 bar
-    # Muscle-joint coupling (see pamrun/actuation.py): "kinematic" (contraction follows the
+    # Muscle-joint coupling (see pamrun/physics/actuation.py): "kinematic" (contraction follows the
     # joint through its pulley) or "thesis" (contraction is a dynamic state, the thesis' Simulink model).
     coupling: str = "kinematic"  # kinematic (contraction follows the joint) or thesis
     # Kinematic coupling, not in the thesis: both muscles' contraction in the standing pose
@@ -366,7 +366,7 @@ def check_muscle_stretch(muscle: MuscleConfig, body: "BodyConfig") -> None:
 # --------------------------------------------------------------------------- body
 
 # The foot as ratios of body height H and mass M (thesis Table 8.2): length (heel to toe tip),
-# width and height (ankle to sole) / H, mass / M. pamrun/body.py builds the foot from them, and
+# width and height (ankle to sole) / H, mass / M. pamrun/physics/body.py builds the foot from them, and
 # the toe (BodyConfig.toe) is a part of that foot.
 FOOT_LENGTH_RATIO = 0.152
 FOOT_WIDTH_RATIO = 0.055
@@ -402,7 +402,7 @@ class BodyConfig:
 
     height_m: float = 1.80  # Table 8.2 reference
     mass_kg: float = 80.0  # Table 8.2 reference
-    # Pelvis/torso block: not in the thesis. Ratios of H and M, see pamrun/body.py for the source.
+    # Pelvis/torso block: not in the thesis. Ratios of H and M, see pamrun/physics/body.py for the source.
     pelvis_mass_ratio: float = 0.142  # pelvis/torso block mass / M (Winter, Table 4.1)
     pelvis_width_ratio: float = 0.191  # pelvis block width / H (Drillis & Contini hip width)
     pelvis_depth_ratio: float = 0.1  # pelvis block depth / H
@@ -418,7 +418,7 @@ class BodyConfig:
     joint_stiffness_nm_per_rad: float = 0.0  # passive joint spring (Table 8.2: none)
     joint_damping_nms_per_rad: float = 1.0  # passive joint damping (Table 8.2)
     # Joint limits: the thesis' Simscape stop is a spring-damper (1e4 N m/rad, 10 N m s/rad,
-    # Table 8.2). MuJoCo's soft limit cannot be one (see pamrun/body.py); we use its own stiff,
+    # Table 8.2). MuJoCo's soft limit cannot be one (see pamrun/physics/body.py); we use its own stiff,
     # critically damped stop: time constant [s] and damping ratio of the constraint. 5 ms holds
     # the sized muscles (up to ~100 N m at a limit) within 2 deg; 10 ms let the ankle pass by 4.
     joint_limit_timeconst_s: float = 0.005  # 2 physics steps, MuJoCo's stiffest stable stop
@@ -430,7 +430,7 @@ class BodyConfig:
     ankle_pitch_limits_deg: list[float] = field(default_factory=lambda: [-45.0, 45.0])
     ankle_roll_limits_deg: list[float] = field(default_factory=lambda: [-25.0, 35.0])
     # A passive toe (thesis §13, future work): a toe segment hinged about the lateral axis at the
-    # metatarsal line, held flat by a torsional spring; no muscle, no action (pamrun/body.py).
+    # metatarsal line, held flat by a torsional spring; no muscle, no action (pamrun/physics/body.py).
     toe: bool = False  # add the passive toe to each foot (false: the thesis' one-piece foot, unchanged)
     # toe (metatarsal line to tip) / foot length: the first MTP joint lies at 70-79 % of the foot's
     # length from the heel (3-D scans of 453 feet: "Flexion location of the first metatarsophalangeal

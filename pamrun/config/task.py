@@ -34,7 +34,7 @@ class RewardConfig:
     kair: float = 0.0  # weight of the supply air the muscles draw in a control step [normal litres]
     kstep: float = 0.0  # weight of the steps' miss, sum over touchdowns of (s - env.step_length_m)^2 / env.step_length_m [m]
     # weight of the feet following the gait clock, 1 - their miss (needs env.gait_period_s > 0):
-    # the miss is force on a foot the clock swings; speed, or want of load, of a foot it stands on (pamrun.env, "Gait clock")
+    # the miss is force on a foot the clock swings; speed, or want of load, of a foot it stands on (pamrun.task.env, "Gait clock")
     kgait: float = 0.0
 
     def __post_init__(self) -> None:
@@ -68,7 +68,7 @@ class EnvConfig:
     # The command applied is alpha a + (1 - alpha) a_prev: a first-order low-pass of the policy's
     # action a (a_prev the last applied command, 0 at reset), for smaller pressure steps; 1 = off
     action_filter_alpha: float = 1.0
-    # Gait clock (pamrun.env, "Gait clock"; Siekmann et al., ICRA 2021): a phase that turns once per
+    # Gait clock (pamrun.task.env, "Gait clock"; Siekmann et al., ICRA 2021): a phase that turns once per
     # stride of this period [s], the right foot's swing in its first swing_share, the left's half a
     # period later; the observation ends with the phase's sine and cosine, reward.kgait pays for
     # following it. 0 = no clock. pamrun's choice for the period: 2.5 steps/s, which at
@@ -76,17 +76,17 @@ class EnvConfig:
     gait_period_s: float = 0.0
     swing_share: float = 0.4  # share of the period a foot swings; < 0.5 leaves both feet down between steps
     # Height [m] reward.kgait wants a swinging foot's lowest point to reach, its miss the shortfall's
-    # share (pamrun.env, "Gait clock"); 0 = off (only force on the swinging foot is charged)
+    # share (pamrun.task.env, "Gait clock"); 0 = off (only force on the swinging foot is charged)
     swing_clearance_m: float = 0.0
     # Knee flexion [deg] reward.kgait wants of a swinging leg, its miss the shortfall's share
-    # (pamrun.env, "Gait clock"); 0 = off. env.stance_knee_deg asks the stance knee
+    # (pamrun.task.env, "Gait clock"); 0 = off. env.stance_knee_deg asks the stance knee
     swing_knee_deg: float = 0.0
     # Knee flexion [deg] at which reward.kgait charges a leg the clock stands on fully, its miss
-    # the bend's share (pamrun.env, "Gait clock"): asks stance toward the knee's lock; 0 = off
+    # the bend's share (pamrun.task.env, "Gait clock"): asks stance toward the knee's lock; 0 = off
     stance_knee_deg: float = 0.0
     # The clock's period and reward.kstep's step length follow the episode's commanded speed v*,
     # each as its square root, so v* = 2 L* / T at every v* (pamrun's choice, after human walking;
-    # the rule: pamrun.env, "Gait clock", gait_at_speed)
+    # the rule: pamrun.task.env, "Gait clock", gait_at_speed)
     gait_follows_speed: bool = False
     reset_noise_rad: float = 0.0  # uniform noise on joint angles at reset
     reset_velocity_noise: float = 0.0  # uniform noise on joint velocities [rad/s]

@@ -1,0 +1,548 @@
+"""Bench experiments on the physics, as the thesis ran them (§10.1): ``pamrun muscle ...``.
+
+Each function is a Hydra task: it takes the composed config, writes its files into the
+run directory, prints where, and shows a rich table of what it measured.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+from dataclasses import replace
+
+import numpy as np
+from omegaconf import DictConfig
+from rich.table import Table
+
+from pamrun.config import SPRING_FILE, Config, MuscleConfig, to_object
+from pamrun.evaluation import figures
+from pamrun.physics.force_laws import FORCE_LAWS, MARTENS_BOBLAN_DMSP20_300
+from pamrun.physics.muscle import calibrate_spring, simulate_step
+from pamrun.runs.files import console as make_console
+from pamrun.runs.files import run_dir
+
+console = make_console()  # a terminal's width, or wide enough in a log that no table is cut
+
+
+def step_responses(cfg: Config, every_s: float = 0.01) -> dict:
+    """Simulate every §10.1 experiment; keep the series at ``every_s`` for plotting."""
+    keep = max(1, int(round(every_s / cfg.pair.dt_s)))
+    out = {}
+    for name, exp in cfg.pair.experiments.items():
+        sim = simulate_step(cfg.muscle, cfg.pair, exp)
+        final = sim["contraction_pct"][-1]
+        out[name] = {
+            "label": exp.label,
+            "pressure_kpa": [exp.pressure1_kpa, exp.pressure2_kpa],
+            "final_contraction_pct": [round(float(v), 4) for v in final],
+            "thesis_final_pct": list(exp.thesis_final_pct),
+            "error_points": [round(float(a - b), 4) for a, b in zip(final, exp.thesis_final_pct)],
+            "time_s": sim["time_s"][::keep].round(4).tolist(),
+            "contraction_pct": sim["contraction_pct"][::keep].round(4).tolist(),
+        }
+    return out
+
+
+def print_step_table(results: dict, tolerance_pct: float) -> bool:
+    """Rich table of final contractions beside the thesis; True if all within tolerance."""
+    table = Table(title="Antagonistic pair step responses (thesis §10.1)")
+    for col in ("experiment", "muscle", "pressure (kPa)", "pamrun (%)", "thesis (%)", "error (points)"):
+        table.add_column(col, justify="left" if col in ("experiment",) else "right")
+    ok = True
+    for name, r in results.items():
+        for i in range(2):
+            err = r["error_points"][i]
+            ok &= abs(err) <= tolerance_pct
+            style = "green" if abs(err) <= tolerance_pct else "red"
+            table.add_row(
+                r["label"] or name if i == 0 else "",
+                str(i + 1),
+                f"{r['pressure_kpa'][i]:.1f}",
+                f"{r['final_contraction_pct'][i]:.2f}",
+                f"{r['thesis_final_pct'][i]:.2f}",
+                f"[{style}]{err:+.3f}[/{style}]",
+            )
+    console.print(table)
+    verdict = "[green]yes[/green]" if ok else "[red]NO[/red]"
+    console.print(f"All final contractions within {tolerance_pct} points of the thesis: {verdict}")
+    return ok
+
+
+def muscle_step(dcfg: DictConfig) -> None:
+    """``pamrun muscle step``: both §10.1 experiments -> step_response.json/.png."""
+    cfg: Config = to_object(dcfg)
+    out = run_dir()
+    capped = _capped_experiment_kpa(cfg)
+    results = step_responses(cfg)
+    path = out / "step_response.json"
+    path.write_text(json.dumps({"spring_n_per_m": list(cfg.muscle.spring.stiffness_n_per_m), "experiments": results}))
+    figures.step_response(path, out / "step_response.png")
+    print_step_table(results, cfg.pair.tolerance_pct)
+    if capped:
+        console.print(f"[yellow]muscle.max_pressure_kpa = {cfg.muscle.max_pressure_kpa:.0f} kPa caps the experiments' "
+                      f"{capped:.0f} kPa: the §10.1 numbers are the thesis muscle's (muscle=thesis).[/yellow]")
+    console.print(f"Wrote {path.name}, step_response.png")
+
+
+def _capped_experiment_kpa(cfg: Config) -> float:
+    """The highest §10.1 experiment pressure this muscle cannot reach (0 if it reaches all)."""
+    top = max(max(e.pressure1_kpa, e.pressure2_kpa) for e in cfg.pair.experiments.values())
+    return top if top > cfg.muscle.max_pressure_kpa else 0.0
+
+
+def muscle_calibrate(dcfg: DictConfig) -> None:
+    """``pamrun muscle calibrate``: fit S(P), write it as YAML, show the step responses."""
+    cfg: Config = to_object(dcfg)
+    capped = _capped_experiment_kpa(cfg)
+    if capped:
+        raise SystemExit(f"pamrun: muscle calibrate fits S(P) to the §10.1 steps up to {capped:.0f} kPa, but "
+                         f"muscle.max_pressure_kpa is {cfg.muscle.max_pressure_kpa:.0f}: run it with muscle=thesis")
+    out = run_dir()
+    table, fitted = calibrate_spring(cfg.muscle, cfg.pair)
+    spring = replace(cfg.muscle.spring, stiffness_n_per_m=table)
+    cfg = replace(cfg, muscle=replace(cfg.muscle, spring=spring))
+
+    edges = spring.band_edges_kpa
+    rich_table = Table(title="Fitted spring table S(P)")
+    for col in ("band (kPa)", "S (N/m)", "D = tau*S (N s/m)", "source"):
+        rich_table.add_column(col, justify="right")
+    for k, s in enumerate(table):
+        source = "fitted" if k in fitted else "interpolated"
+        rich_table.add_row(f"{edges[k]:.0f}-{edges[k + 1]:.0f}", f"{s:.3f}", f"{cfg.muscle.tau_s * s:.3f}", source)
+    console.print(rich_table)
+
+    text = spring_yaml(edges, table, fitted)
+    (out / "spring_table.yaml").write_text(text)
+    written = ["spring_table.yaml"]
+    if cfg.pair.calibrate_write_conf:
+        SPRING_FILE.write_text(text)
+        written.append(str(SPRING_FILE))
+    results = step_responses(cfg)
+    print_step_table(results, cfg.pair.tolerance_pct)
+    console.print(f"Wrote {', '.join(written)}")
+
+
+def spring_yaml(edges_kpa: list[float], table: list[float], fitted: list[int]) -> str:
+    stamp = dt.datetime.now().isoformat(timespec="seconds")
+    return (
+        f"# Generated by `pamrun muscle calibrate` ({stamp}). Do not edit by hand: rerun it.\n"
+        "# Spring coefficient S(P) of the DMSP-20 per pressure band, fitted so that the\n"
+        "# simulated step responses of thesis §10.1 end at the published contractions.\n"
+        f"# Fitted bands: {', '.join(f'{edges_kpa[k]:.0f}-{edges_kpa[k + 1]:.0f} kPa' for k in fitted)};\n"
+        "# the others are interpolated linearly in pressure between fitted band centres.\n"
+        f"band_edges_kpa: {[float(e) for e in edges_kpa]}\n"
+        f"stiffness_n_per_m: {[float(s) for s in table]}\n"
+        "hysteresis: none\n"
+    )
+
+
+def force_curve_data(force_law: str, max_pressure_kpa: float) -> dict:
+    """What ``force_curves.json`` holds: the configured law's F(x, P) surface [N] (never
+    negative), every law's curves at every 100 kPa and at the measured DMSP-20-300's pressures,
+    and those measured points (Martens & Boblan 2017)."""
+    laws = {name: law_class(max_pressure_kpa) for name, law_class in FORCE_LAWS.items()}
+    x = np.linspace(-3.0, 30.0, 133)
+    p = np.linspace(0.0, max_pressure_kpa, 33)
+    curve_p = [float(v) for v in np.arange(0.0, max_pressure_kpa + 1, 100.0)]
+    measured_p = sorted({float(row[0]) for row in MARTENS_BOBLAN_DMSP20_300})
+
+    def forces(law, pressures) -> list:
+        return np.maximum(law.signed_force_n(x[None, :], np.asarray(pressures)[:, None]), 0.0).round(3).tolist()
+
+    return {
+        "force_law": force_law,
+        "contraction_pct": x.round(4).tolist(),
+        "pressure_kpa": p.round(3).tolist(),
+        "force_n": forces(laws[force_law], p),
+        "curve_pressures_kpa": curve_p,
+        "curves_n": {name: forces(law, curve_p) for name, law in laws.items()},
+        "measured_pressures_kpa": measured_p,
+        "measured_curves_n": {name: forces(law, measured_p) for name, law in laws.items()},
+        "measured": {"source": "Festo DMSP-20-300, Martens & Boblan 2017 (THESIS.md §8)",
+                     "points": [{"pressure_kpa": a, "contraction_pct": b, "force_n": c}
+                                for a, b, c in MARTENS_BOBLAN_DMSP20_300]},
+    }
+
+
+def muscle_curves(dcfg: DictConfig) -> None:
+    """``pamrun muscle curves``: force_curves.png (Fig. 8.10, every force law against the measured
+    DMSP-20-300) and force_surface.png (Fig. 8.9, the configured ``muscle.force_law``)."""
+    cfg: Config = to_object(dcfg)
+    out = run_dir()
+    top = cfg.muscle.max_pressure_kpa
+    path = out / "force_curves.json"
+    path.write_text(json.dumps(force_curve_data(cfg.muscle.force_law, top)))
+    figures.force_curves(path, out / "force_curves.png", out / "force_surface.png")
+    table = Table(title="DMSP-20 force (N) at contraction x, pressure P, per force law")
+    table.add_column("P (kPa)", justify="right")
+    table.add_column("law")
+    shown = [0, 5, 10, 15, 20, 25]
+    for xc in shown:
+        table.add_column(f"x={xc}%", justify="right")
+    laws = {name: law_class(top) for name, law_class in FORCE_LAWS.items()}
+    for pk in (200, 400, 600, 800):
+        for name, law in laws.items():
+            vals = np.maximum(law.signed_force_n(np.array(shown, float), float(pk)), 0.0)
+            table.add_row(str(pk), name, *(f"{v:.0f}" for v in vals))
+    console.print(table)
+    p, x, f = np.asarray(MARTENS_BOBLAN_DMSP20_300, float).T
+    for name, law in laws.items():
+        miss = np.maximum(law.signed_force_n(x, p), 0.0) - f
+        console.print(f"{name}: RMSE {np.sqrt(np.mean(miss**2)):.0f} N, worst {np.abs(miss).max():.0f} N against the "
+                      f"{len(f)} measured DMSP-20-300 points (Martens & Boblan 2017)")
+    console.print(f"Wrote force_curves.json, force_curves.png, force_surface.png (surface: {cfg.muscle.force_law})")
+
+
+# --------------------------------------------------------------------------- valve
+
+
+def _crossing_s(time_s: np.ndarray, pressure_kpa: np.ndarray, level_kpa: float) -> float | None:
+    """First time [s] the rising pressure reaches ``level_kpa``, interpolated linearly (None: never)."""
+    above = np.flatnonzero(pressure_kpa >= level_kpa)
+    if not len(above):
+        return None
+    k = int(above[0])
+    if k == 0:
+        return float(time_s[0])
+    t0, t1, p0, p1 = time_s[k - 1], time_s[k], pressure_kpa[k - 1], pressure_kpa[k]
+    return float(t0 + (t1 - t0) * (level_kpa - p0) / (p1 - p0))
+
+
+def valve_step_responses(muscle: MuscleConfig, contractions_pct=(0.0, 20.0), muscles_per_side=(1, 2),
+                         step_kpa: float = 600.0, duration_s: float = 0.5, dt_s: float = 0.0005) -> dict:
+    """One side's pressure after a 0 -> ``step_kpa`` command at fixed contractions, for
+    ``muscle.regulator.model`` = lag and = flow (the rest of ``muscle`` as given): time series
+    and the 10-90 % rise time, the times to 10, 90 and 95 % [s], per contraction [%] and
+    number of muscles the valve fills. The lag's response does not depend on either: one case."""
+    from pamrun.physics.valve import make_regulator
+
+    time_s = np.arange(int(round(duration_s / dt_s)) + 1) * dt_s
+    every = max(1, int(round(0.002 / dt_s)))  # the series kept: every 2 ms
+    cases = []
+    for model in ("lag", "flow"):
+        cfg = replace(muscle, regulator=replace(muscle.regulator, model=model))
+        for contraction in contractions_pct if model == "flow" else contractions_pct[:1]:
+            for count in muscles_per_side if model == "flow" else muscles_per_side[:1]:
+                reg = make_regulator(cfg, np.zeros((1, 2)), count)
+                reg.reset(np.zeros((1, 2)))
+                voltage = reg.voltage_for_pressure_v(np.full((1, 2), step_kpa))
+                at = np.full((1, 2), float(contraction))
+                pressure = np.empty(len(time_s))
+                pressure[0] = reg.pressure_kpa[0, 0]
+                for k in range(1, len(time_s)):
+                    reg.step(voltage, dt_s, at)
+                    pressure[k] = reg.pressure_kpa[0, 0]
+                times = {f"t{share}_s": _crossing_s(time_s, pressure, share / 100 * step_kpa) for share in (10, 90, 95)}
+                rise = None if None in (times["t10_s"], times["t90_s"]) else times["t90_s"] - times["t10_s"]
+                flow = model == "flow"
+                cases.append({"model": model, "contraction_pct": float(contraction) if flow else None,
+                              "muscles_per_side": int(count) if flow else None,
+                              "volume_l": round(float(reg.volume_l[0, 0]), 5) if flow else None,
+                              "rise_10_90_s": None if rise is None else round(rise, 5),
+                              **{k: None if v is None else round(v, 5) for k, v in times.items()},
+                              "pressure_kpa": pressure[::every].round(2).tolist()})
+    reg = muscle.regulator
+    return {"step_kpa": step_kpa, "dt_s": dt_s, "every_s": every * dt_s,
+            "size": muscle.size, "nominal_length_m": muscle.nominal_length_m,
+            "regulator": {k: getattr(reg, k) for k in ("lag_s", "nominal_flow_nl_min", "critical_pressure_ratio",
+                                                         "supply_pressure_kpa", "reservoir_volume_l")},
+            "cases": cases}
+
+
+def print_valve_table(results: dict) -> None:
+    """Rich table of the rise times of :func:`valve_step_responses`."""
+    lag_ms = results["regulator"]["lag_s"] * 1000
+    table = Table(title=f"Regulator step 0 -> {results['step_kpa']:.0f} kPa, {results['size']} "
+                        f"{results['nominal_length_m'] * 1000:.0f} mm, lag {lag_ms:.0f} ms")
+    for col in ("model", "contraction (%)", "muscles", "volume (l)", "10-90 % (ms)", "to 90 % (ms)", "to 95 % (ms)"):
+        table.add_column(col, justify="left" if col == "model" else "right")
+
+    def ms(value):
+        return "never" if value is None else f"{1000 * value:.1f}"
+
+    for c in results["cases"]:
+        lag = c["model"] == "lag"  # any contraction, any volume
+        table.add_row(c["model"], "any" if lag else f"{c['contraction_pct']:.0f}",
+                      "any" if lag else str(c["muscles_per_side"]), "any" if lag else f"{c['volume_l']:.3f}",
+                      ms(c["rise_10_90_s"]), ms(c["t90_s"]), ms(c["t95_s"]))
+    console.print(table)
+
+
+def muscle_valve(dcfg: DictConfig) -> None:
+    """``pamrun muscle valve``: regulator step 0 -> 600 kPa, lag vs flow -> valve_step.json/.png."""
+    cfg: Config = to_object(dcfg)
+    out = run_dir()
+    results = valve_step_responses(cfg.muscle)
+    path = out / "valve_step.json"
+    path.write_text(json.dumps(results))
+    figures.valve_step(path, out / "valve_step.png")
+    print_valve_table(results)
+    console.print("Wrote valve_step.json, valve_step.png")
+
+
+# --------------------------------------------------------------------------- hysteresis
+
+
+def print_hysteresis_table(results: dict) -> None:
+    """Rich table of the loop areas of :func:`pamrun.physics.hysteresis.hysteresis_loop`."""
+    table = Table(title=f"Loop area per cycle [J]: {results['size']} {results['nominal_length_m'] * 1000:.0f} mm, "
+                        f"contraction {results['center_pct']:g} +- {results['amplitude_pct']:g} %")
+    for col in ("pressure (kPa)", "none", "maxwell_slip", "analytic sum 4 f (A - f/k)"):
+        table.add_column(col, justify="right")
+    for c in results["cases"]:
+        table.add_row(f"{c['pressure_kpa']:.0f}", f"{c['area_none_j']:.2e}", f"{c['area_slip_j']:.4f}",
+                      f"{c['analytic_area_j']:.4f}")
+    console.print(table)
+
+
+def muscle_hysteresis(dcfg: DictConfig) -> None:
+    """``pamrun muscle hysteresis``: one muscle cycled at constant pressure, force vs contraction
+    with and without the Maxwell-slip elements -> hysteresis_loop.json/.png (loop areas [J])."""
+    from pamrun.physics.hysteresis import hysteresis_loop
+
+    cfg: Config = to_object(dcfg)
+    out = run_dir()
+    results = hysteresis_loop(cfg.muscle)
+    path = out / "hysteresis_loop.json"
+    path.write_text(json.dumps(results))
+    figures.hysteresis_loop(path, out / "hysteresis_loop.png")
+    print_hysteresis_table(results)
+    console.print("Wrote hysteresis_loop.json, hysteresis_loop.png")
+
+
+# --------------------------------------------------------------------------- robot
+
+# The nine movements of thesis §10.2, on the left leg: (joint, limit side, label).
+# Signs follow the body's convention (right-hand rule about +x forward, +y left, +z up):
+# knee flexion and hip extension are positive pitch, left hip abduction is positive roll;
+# the larger ankle-roll range (+35 deg, Table 8.3) is taken as inversion.
+MOVEMENTS: dict[str, tuple[str, int]] = {
+    "ankle_dorsiflexion": ("ankle_pitch", 0),
+    "ankle_plantar_flexion": ("ankle_pitch", 1),
+    "ankle_inversion": ("ankle_roll", 1),
+    "ankle_eversion": ("ankle_roll", 0),
+    "knee_flexion": ("knee", 1),
+    "hip_abduction": ("hip_roll", 1),
+    "hip_adduction": ("hip_roll", 0),
+    "hip_flexion": ("hip_pitch", 0),
+    "hip_extension": ("hip_pitch", 1),
+}
+
+
+def openloop_movement(cfg: Config, movement: str, duration_s: float = 3.0, step_time_s: float = 0.2) -> dict:
+    """Pressure step on one left-leg pair with the torso held in the air (thesis §10.2).
+
+    The agonist steps to the muscle's maximum pressure, the antagonist to the regulator's
+    minimum; the other pairs stay at V0. Returns the time series and the final angle.
+    """
+    import mujoco
+
+    from pamrun.physics.actuation import MuscleDrive, joint_limits_rad
+    from pamrun.physics.body import JOINTS, build_fixed_model, joint_addresses
+
+    joint, side = MOVEMENTS[movement]
+    j = JOINTS.index(f"left_{joint}")
+    limits = joint_limits_rad(cfg.body)[j]
+    model = build_fixed_model(cfg.body, timestep_s=cfg.env.physics_dt_s)
+    data = mujoco.MjData(model)
+    qi, vi = joint_addresses(model)
+    drive = MuscleDrive(cfg.muscle, cfg.body)
+    drive.reset()
+    mujoco.mj_forward(model, data)
+
+    reg = cfg.muscle.regulator
+    v_max = min(cfg.muscle.max_pressure_kpa, reg.max_pressure_kpa) / reg.gain_kpa_per_v
+    v_min = reg.min_voltage_v
+    rest = drive.voltage_v.copy()
+    stepped = rest.copy()
+    # Muscle 1 pulls towards positive angles: it is the agonist for the upper limit.
+    stepped[j] = [v_max, v_min] if side == 1 else [v_min, v_max]
+
+    dt = cfg.env.muscle_dt_s
+    nstep = int(round(dt / cfg.env.physics_dt_s))
+    n = int(round(duration_s / dt))
+    keep = max(1, int(round(0.01 / dt)))
+    series: dict[str, list] = {"time_s": [], "pressure_kpa": [], "contraction_pct": [], "angle_deg": []}
+    for k in range(n + 1):
+        t = k * dt
+        if k % keep == 0:
+            series["time_s"].append(round(t, 4))
+            series["pressure_kpa"].append(drive.pressure_kpa[j].round(2).tolist())
+            series["contraction_pct"].append(drive.contraction_pct[j].round(3).tolist())
+            series["angle_deg"].append(round(float(np.degrees(data.qpos[qi[j]])), 3))
+        drive.set_voltages(stepped if t >= step_time_s else rest)
+        drive.apply(model, data, qi, vi, dt)
+        mujoco.mj_step(model, data, nstep)
+    # The thesis' limit damping (10 N m s/rad) lets a joint bounce on its stop: average.
+    angles = np.asarray(series["angle_deg"])
+    final = float(angles[np.asarray(series["time_s"]) >= duration_s - 0.5].mean())
+    limit = float(np.degrees(limits[side]))
+    gravity, muscle_at_limit = _torques_at_limit(model, data, drive, j, limits[side], dt)
+    return {
+        "joint": f"left_{joint}",
+        "limit_deg": round(limit, 3),
+        "final_angle_deg": round(final, 3),
+        "error_deg": round(final - limit, 3),
+        "reached": abs(final - limit) <= 2.0,
+        "pressures_kpa": [round(float(drive.pressure_kpa[j][0]), 1), round(float(drive.pressure_kpa[j][1]), 1)],
+        "pulley_radius_m": round(float(drive.radius_m[j]), 5),
+        "muscle_torque_at_limit_nm": round(muscle_at_limit, 3),
+        "gravity_torque_at_limit_nm": round(gravity, 3),
+        **series,
+    }
+
+
+def _torques_at_limit(model, data, drive, j: int, limit_rad: float, dt: float) -> tuple[float, float]:
+    """Why a joint stalls: the gravity torque to hold joint ``j`` at its limit, and the muscles'
+    torque there [N m] (the thesis coupling's: the torque it ended with)."""
+    import mujoco
+
+    from pamrun.physics.body import JOINTS, joint_addresses
+
+    muscle_now = float(data.actuator_force[j])  # muscle torque at the end [N m]
+    qi, vi = joint_addresses(model)
+    data.qpos[:] = 0
+    data.qpos[qi[j]] = limit_rad
+    data.qvel[:] = 0
+    mujoco.mj_forward(model, data)
+    if not drive.kinematic:
+        return float(data.qfrc_bias[vi[j]]), muscle_now
+    angle = np.zeros(len(JOINTS))
+    angle[j] = limit_rad
+    return float(data.qfrc_bias[vi[j]]), float(drive.torques_nm(angle, np.zeros(len(JOINTS)), dt)[j])
+
+
+def openloop(dcfg: DictConfig) -> None:
+    """``pamrun openloop``: the nine §10.2 movements -> openloop.json, one figure each."""
+    cfg: Config = to_object(dcfg)
+    out = run_dir()
+    results = {name: openloop_movement(cfg, name) for name in MOVEMENTS}
+    path = out / "openloop.json"
+    path.write_text(json.dumps({"coupling": cfg.muscle.coupling, "movements": results}))
+    for name in results:
+        figures.openloop_movement(path, name, out / f"openloop_{name}.png")
+    table = Table(title=f"Open-loop tests, torso fixed (thesis §10.2), coupling={cfg.muscle.coupling}")
+    for col in ("movement", "limit (deg)", "final (deg)", "p1/p2 (kPa)", "r (mm)", "muscle (N m)", "gravity (N m)", "reached"):
+        table.add_column(col, justify="left" if col == "movement" else "right", no_wrap=col == "movement")
+    for name, r in results.items():
+        mark = "[green]yes[/green]" if r["reached"] else "[red]no[/red]"
+        p1, p2 = r["pressures_kpa"]
+        table.add_row(name, f"{r['limit_deg']:.2f}", f"{r['final_angle_deg']:.2f}", f"{p1:.0f}/{p2:.0f}",
+                      f"{r['pulley_radius_m'] * 1000:.1f}", f"{r['muscle_torque_at_limit_nm']:.1f}",
+                      f"{r['gravity_torque_at_limit_nm']:.1f}", mark)
+    console.print(table)
+    n_ok = sum(r["reached"] for r in results.values())
+    console.print(
+        f"{n_ok}/{len(results)} movements reach their limit within 2 deg (final: mean of the last 0.5 s). "
+        "muscle: the pair's torque at the limit (thesis coupling: its settled torque); gravity: the torque "
+        "gravity exerts on the joint there. Wrote openloop.json and 9 figures."
+    )
+
+
+def body(dcfg: DictConfig) -> None:
+    """``pamrun body``: robot.xml (generated model), body.json (segments), robot.png."""
+    from pamrun.physics import body as body_mod
+
+    cfg: Config = to_object(dcfg)
+    out = run_dir()
+    spec = body_mod.build_spec(cfg.body, timestep_s=cfg.env.physics_dt_s)
+    model = spec.compile()
+    (out / "robot.xml").write_text(spec.to_xml())
+    rows = body_mod.segment_table(cfg.body)
+    total_kg = float(model.body_subtreemass[0])
+    (out / "body.json").write_text(
+        json.dumps({"height_m": cfg.body.height_m, "mass_kg": cfg.body.mass_kg, "robot_mass_kg": total_kg,
+                    "segments": rows}, indent=2)
+    )
+    import matplotlib.pyplot as plt
+
+    plt.imsave(out / "robot.png", body_mod.render_standing(model, 640, 480))
+    table = Table(title=f"Segments for H = {cfg.body.height_m} m, M = {cfg.body.mass_kg} kg (thesis Table 8.2)")
+    headers = {"segment": "segment", "x_m": "x (m)", "y_m": "y (m)", "z_m": "z (m)", "mass_kg": "mass (kg)",
+               "com_m": "CoM (m)", "radius_gyration_m": "ro (m)", "inertia_kgm2": "I0 (kg m2)"}
+    for key, title in headers.items():
+        table.add_column(title, justify="left" if key == "segment" else "right", no_wrap=key == "segment")
+    for row in rows:
+        table.add_row(*("" if isinstance(v, float) and np.isnan(v) else f"{v:.4f}" if isinstance(v, float) else str(v)
+                        for v in (row[k] for k in headers)))
+    console.print(table)
+    if cfg.body.toe:
+        _print_toe(console, cfg.body, body_mod.anthropometry(cfg.body)["toe"], cfg.env.physics_dt_s)
+    console.print(f"Robot mass {total_kg:.2f} kg. Wrote robot.xml, body.json, robot.png")
+
+
+def _print_toe(console, body_cfg, toe: dict, physics_dt_s: float) -> None:
+    """``pamrun body body.toe=true``: what the toe row is and how its hinge is set."""
+    lo, hi = body_cfg.toe_range_deg
+    console.print(
+        f"Toe (body.toe): the foot's front {body_cfg.toe_length_ratio:.0%} ({toe['x_m'] * 1000:.0f} mm) and "
+        f"{body_cfg.toe_mass_ratio:.1%} of its mass ({toe['mass_kg']:.3f} kg; the foot row is the whole foot), hinged "
+        f"{toe['hinge_x_m'] * 1000:.0f} mm ahead of the ankle at the metatarsal line; I about the hinge "
+        f"{toe['hinge_inertia_kgm2']:.2e} kg m2. Passive: spring {body_cfg.toe_stiffness_nm_per_rad} N m/rad (at most "
+        f"{body_cfg.toe_critical_stiffness_nm_per_rad(physics_dt_s):.0f} at {physics_dt_s * 1000:g} ms), damping "
+        f"{body_cfg.toe_damping_nms_per_rad} N m s/rad, range {lo:g}..{hi:g} deg (toe up negative). Its tip "
+        "carries the foot's front contact spheres; the foot stands on heel and ball (contact_ball_*).")
+
+
+def capacity(dcfg: DictConfig) -> None:
+    """``pamrun capacity``: muscle envelope and stiffness against standing and walking demand."""
+    from pamrun.physics.capacity import analyse
+
+    cfg: Config = to_object(dcfg)
+    out = run_dir()
+    result = analyse(cfg.muscle, cfg.body)
+    path = out / "capacity.json"
+    path.write_text(json.dumps(result))
+    figures.capacity(path, out / "capacity.png")
+    m = cfg.muscle
+    burst = m.coupling == "thesis"
+    table = Table(title=f"Capacity vs demand: {m.size}, L0 {m.nominal_length_m * 1000:.0f} mm, {m.coupling} coupling, "
+                        f"band {result['band_kpa'][1]:.0f}/{result['band_kpa'][0]:.0f} kPa, "
+                        f"robot {result['robot_mass_kg']:.1f} kg")
+    cols = ("joint", "n", "r mm", "walk Nm", "band Nm", "margin", "full", "lean Nm", "K0", "mgh", "K0/mgh")
+    for col in cols:
+        table.add_column(col, justify="left" if col == "joint" else "right", no_wrap=True)
+    need = result["required_margin"]
+    for name, r in result["joints"].items():
+        ok = r["walking_margin"] >= need
+        k_ok = r["stiffness_margin"] >= 1.0
+        table.add_row(name, str(r["muscles_per_direction"]), f"{r['radius_mm']:.1f}", f"{r['walking_demand_nm']:.1f}",
+                      f"{r['envelope']['band']['walking_min_nm']:.1f}",
+                      f"[{'green' if ok else 'red'}]{r['walking_margin']:.2f}[/]", f"{r['walking_margin_full']:.2f}",
+                      f"{r['lean_demand_nm']:.1f}", f"{abs(r['stiffness_zero_action_nm_per_rad']):.0f}",
+                      f"{r['gravity_stiffness_nm_per_rad']:.0f}",
+                      f"[{'green' if k_ok else 'red'}]{abs(r['stiffness_margin']):.2f}[/]")
+    console.print(table)
+    v = result["verdict"]
+    console.print(
+        "n: muscles per direction; walk: peak walking moment; band: the weakest envelope point over the walking "
+        "range in the command band; margin = band / walk (full: at full pressure); lean: holding a "
+        f"{result['lean_deg']:.0f} deg lean; K0: stiffness at zero action; mgh: gravitational stiffness per leg "
+        "(N m/rad)."
+    )
+    if burst:
+        console.print("Thesis coupling: the envelope is the burst torque right after a pressure change (both "
+                      "muscles still at their rest contraction); it decays to ~0 within ~20 ms, and the pair has no "
+                      "stiffness: the robot cannot hold a pose by pressure alone.")
+    console.print(
+        f"Walking demand (peak human joint moments per kg x {result['robot_mass_kg']:.1f} kg, anywhere in the walking "
+        f"range, either direction) covered with margin >= {need}: "
+        + ("[green]yes[/green]" if v["walking_margin_ok"] else f"[red]no[/red] (weakest {v['min_walking_margin']:.2f})")
+        + f". Ankle stiffness at zero action ({result['zero_action_kpa']:.0f} kPa both) >= m g h per ankle: "
+        + ("[green]yes[/green]" if v["ankle_stiffness_ok"] else "[red]no[/red]")
+        + f". Centre of mass {result['com_height_m']:.3f} m up."
+    )
+    if "toe" in result:
+        toe = result["toe"]
+        console.print(
+            f"Toe (body.toe, passive, {toe['stiffness_nm_per_rad']} N m/rad): gives {toe['moment_at_stop_nm']:.1f} "
+            f"N m at its {toe['dorsiflexion_stop_deg']:.0f} deg stop. Push-off (human peak MTP moment per kg): "
+            f"{toe['push_off']['demand_nm']:.1f} N m at {toe['push_off']['angle_deg']:.0f} deg; standing on the toes "
+            f"alone: {toe['tip_toe']['demand_nm']:.1f} N m per foot, "
+            + (f"{toe['tip_toe']['angle_deg']:.0f} deg" if toe["tip_toe"]["within_range"]
+               else "past its stop: the toe folds to the stop, which holds the rest")
+            + ". Standing, the foot bears on heel and ball.")
+    air = result["air_per_cycle_nl"]
+    console.print(f"Air at the walking demand: about {air:.1f} normal litres per gait cycle, both legs (each muscle "
+                  f"filled once from the band's low pressure to what its joint's peak needs; {air * 60:.0f} NL/min at one "
+                  "cycle per second). Wrote capacity.json, capacity.png")

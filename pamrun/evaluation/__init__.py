@@ -1,0 +1,1 @@
+"""Evaluation: episodes of saved agents, gait metrics, `pamrun eval`, export, and every figure."""

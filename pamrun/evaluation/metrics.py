@@ -1,0 +1,318 @@
+"""Gait and air metrics of one episode, from its per-step arrays (no simulator needed).
+
+An episode's ``steps`` (see ``pamrun.evaluation.evaluate.run_episode``) holds one row per control step:
+``t_s``, torso ``x_m``, ``joint_angle_rad`` / ``joint_velocity_rad_s`` / ``joint_torque_nm``
+(n, 10) in ``pamrun.physics.body.JOINTS`` order, ``pressure_kpa`` / ``contraction_pct`` (n, 20),
+``foot_force_n`` (n, 2) and ``sole_xyz_m`` (n, 2, 4, 3), the centres of each foot's four
+contact spheres (or ``foot_xyz_m`` (n, 2, 3), one point per foot), feet ordered right, left.
+Lists (as read from episodes.jsonl) and arrays are both accepted.
+
+Definitions (the manual of :func:`episode_metrics`):
+
+* **contact**: a foot is in contact in a row when its normal force exceeds
+  ``GaitSpec.contact_threshold_n``.
+* **touchdown**: a row where a foot is in contact and was not in the row before (a rising
+  edge; a foot already down in the first row has not touched down). Every touchdown is a
+  **step** of that foot.
+* **step length**: forward (x) distance from the other foot's sole centre to the sole centre
+  of the foot touching down, at the touchdown (negative for a step backwards).
+* **step time**: time from the other foot's previous touchdown to this one (undefined for a
+  step before the other foot has touched down).
+* **step frequency**: steps per second over the span of the detected steps,
+  (k - 1) / (t_last - t_first) for k touchdowns of either foot.
+* **stride length**: forward (x) distance a foot moves from one of its touchdowns to its
+  next, averaged over both feet (in a gallop the step lengths alternate in sign and their
+  mean says little; the stride length is what each foot covers per cycle).
+* **symmetry index** of a quantity: |L - R| / ((|L| + |R|) / 2) of its mean over the left
+  foot's and the right foot's steps (0 = symmetric; left 0.3 s, right 0.5 s gives 0.5; 2 when
+  the signs differ, e.g. one foot always landing behind the other).
+* **hop share**: the share of the touchdowns that come within ``HOP_WINDOW_S`` of a touchdown
+  of the other foot (both feet landing together: a hop or bound, not a step; a walk's
+  footfalls alternate, 0; two-footed hopping, 1).
+* **duty factor**: the share of the rows in which a foot is in contact, averaged over both
+  feet (over the whole episode: standing still is 1).
+* **stop share** of a joint: the share of the rows in which its angle lies within
+  ``stop_margin_rad`` of its lower or upper limit (or past it).
+* **knee swing stop share**: the share of the rows in which a foot is off the ground and its
+  knee lies within ``stop_margin_rad`` of a stop, pooled over both legs (the knee's stop share
+  counts its lock in stance, by design; in swing a walker's knee bends). ``stop_share_gait_max``
+  is the largest stop share counting the knees in swing only (the walker issue's target: no
+  joint at a stop more than 30 % of the time but the knee's lock in stance).
+* **swing clearance**: the highest a foot's lowest contact point rises in a swing (a run of
+  rows off the ground between two rows on it), above that point's median height in the foot's
+  rows in contact (the ground, less the contact spheres' radius), averaged over the swings of
+  both feet. It measures the foot, not the knee: a bounding gait lifts its feet high on
+  straight knees.
+* **foot slip**: mean horizontal (x, y) speed of a foot's ground point between consecutive
+  rows in which the foot is in contact in both, pooled over both feet. The ground point is
+  the contact sphere lowest at the first of the two rows, followed to the second: a foot
+  rolling over its heel or toe does not slip, and its ankle, which moves as it rolls, is not
+  what touches the ground.
+* **cost of transport** (mechanical): sum over rows and joints of |torque x velocity| x dt,
+  divided by m g d with d = x_m[-1] - x_m[0], the torso's forward distance. Each row's power
+  stands for the control step that ends at it, so the rows after the first are summed (the
+  first row's step began before x_m[0]); constant power P at constant speed v gives
+  P / (m g v). Negative work counts too (|.|): a muscle spends air to brake as well.
+* **air**: the supply air the muscles draw, :func:`pamrun.physics.muscle.air_nl`, in normal
+  litres, and per metre of d.
+
+Every metric is a float, NaN where undefined (too few steps, d <= 0, ...).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from pamrun.physics.body import GRAVITY, JOINTS, LEG_JOINTS, SIDES
+from pamrun.physics.muscle import MUSCLE_INNER_DIAMETER_M, air_nl
+from pamrun.task.measures import CONTACT_WEIGHT_SHARE, STOP_MARGIN_DEG, step_length
+
+RIGHT, LEFT = 0, 1  # foot columns of foot_force_n / foot_xyz_m
+
+GAIT_METRICS = (
+    "step_count",
+    "step_frequency_hz",
+    "step_length_m",
+    "stride_length_m",
+    "step_time_symmetry",
+    "step_length_symmetry",
+    "hop_share",
+    "duty_factor",
+    *(f"stop_share_{joint}" for joint in JOINTS),
+    "stop_share_max",
+    "knee_swing_stop_share",
+    "stop_share_gait_max",
+    "swing_clearance_m",
+    "foot_slip_m_s",
+    "cost_of_transport",
+    "air_nl",
+    "air_nl_per_m",
+)
+HOP_WINDOW_S = 0.05  # two feet touching down this close together land as one (two control steps)
+
+
+@dataclass(frozen=True, eq=False)
+class GaitSpec:
+    """What the metrics need to know about the robot.
+
+    ``contact_threshold_n`` defaults to 5 % of the body weight (``CONTACT_WEIGHT_SHARE``): a
+    foot in stance carries about half the weight or more, a swinging foot none, so the
+    threshold sits far from both and moves a touchdown or lift-off by a control step at
+    most; it is high enough that a foot grazing the ground (MuJoCo's soft contact reports a
+    small force before the feet really touch) is not a step, and it scales with the robot.
+    """
+
+    dt_s: float  # control step [s]
+    joint_limits_rad: np.ndarray  # (10, 2) [lower, upper] in JOINTS order
+    mass_kg: float  # the robot's total mass
+    muscles_per_side: np.ndarray  # (10,) muscles in parallel per direction of each joint
+    nominal_length_m: float  # muscle nominal length L0
+    inner_diameter_m: float  # muscle inner diameter D0
+    gravity_m_s2: float = GRAVITY
+    contact_threshold_n: float | None = None  # None: CONTACT_WEIGHT_SHARE of the weight
+    stop_margin_rad: float = math.radians(STOP_MARGIN_DEG)
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__  # frozen
+        set_(self, "joint_limits_rad", np.asarray(self.joint_limits_rad, float).reshape(len(JOINTS), 2))
+        set_(self, "muscles_per_side", np.broadcast_to(np.asarray(self.muscles_per_side, float), (len(JOINTS),)))
+        if self.contact_threshold_n is None:
+            set_(self, "contact_threshold_n", CONTACT_WEIGHT_SHARE * self.mass_kg * self.gravity_m_s2)
+
+    @classmethod
+    def from_configs(cls, body_cfg, muscle_cfg, mass_kg: float, dt_s: float, **overrides) -> GaitSpec:
+        """The spec of a robot built from its BodyConfig and MuscleConfig (mass from the model)."""
+        from pamrun.physics.actuation import joint_limits_rad
+
+        return cls(
+            dt_s=dt_s,
+            joint_limits_rad=joint_limits_rad(body_cfg),
+            mass_kg=mass_kg,
+            muscles_per_side=[getattr(muscle_cfg.count, joint) for _ in SIDES for joint in LEG_JOINTS],
+            nominal_length_m=muscle_cfg.nominal_length_m,
+            inner_diameter_m=MUSCLE_INNER_DIAMETER_M[muscle_cfg.size],
+            **overrides,
+        )
+
+
+def contacts(steps: dict, spec: GaitSpec | float) -> np.ndarray:
+    """(n, 2) bool: right and left foot in contact per row (``spec`` or a threshold in N)."""
+    threshold = spec.contact_threshold_n if isinstance(spec, GaitSpec) else float(spec)
+    return np.asarray(steps["foot_force_n"], float).reshape(-1, 2) > threshold
+
+
+def touchdowns(contact: np.ndarray) -> list[np.ndarray]:
+    """Rows where each foot touches down (contact rising edges), [right, left]."""
+    contact = np.asarray(contact, bool)
+    rising = contact[1:] & ~contact[:-1]
+    return [np.flatnonzero(rising[:, foot]) + 1 for foot in (RIGHT, LEFT)]
+
+
+def sole_points(steps: dict) -> np.ndarray:
+    """(n, 2, k, 3): each foot's contact points per row (k = 4 spheres, or 1 from foot_xyz_m)."""
+    if "sole_xyz_m" in steps:
+        points = np.asarray(steps["sole_xyz_m"], float)
+        return points.reshape(len(points), 2, -1, 3)
+    return np.asarray(steps["foot_xyz_m"], float).reshape(-1, 2, 1, 3)
+
+
+def step_table(steps: dict, contact: np.ndarray) -> list[tuple[int, int, float, float]]:
+    """Every step as (row, foot, step length [m], step time [s] or NaN), in time order."""
+    t = np.asarray(steps["t_s"], float)
+    points = sole_points(steps)
+    events = sorted((int(row), foot) for foot, rows in enumerate(touchdowns(contact)) for row in rows)
+    last = [None, None]  # row of each foot's previous touchdown
+    out = []
+    for row, foot in events:
+        other = 1 - foot
+        length = step_length(points[row], foot)
+        time = t[row] - t[last[other]] if last[other] is not None else math.nan
+        out.append((row, foot, float(length), float(time)))
+        last[foot] = row
+    return out
+
+
+def hop_share(steps: dict, contact: np.ndarray) -> float:
+    """Share of the touchdowns within ``HOP_WINDOW_S`` of a touchdown of the other foot (NaN
+    without touchdowns)."""
+    t = np.asarray(steps["t_s"], float)
+    times = [t[rows] for rows in touchdowns(contact)]
+    if not sum(map(len, times)):
+        return math.nan
+    gaps = [np.abs(own[:, None] - other[None, :]).min(axis=1, initial=np.inf)  # to the other foot's nearest
+            for own, other in ((times[0], times[1]), (times[1], times[0]))]
+    together = sum(int(np.count_nonzero(gap <= HOP_WINDOW_S + 1e-9)) for gap in gaps)
+    return together / sum(map(len, times))
+
+
+def symmetry_index(right: float, left: float) -> float:
+    """|L - R| / mean(|L|, |R|); NaN when either is undefined or both are 0.
+
+    For positive L and R this is |L - R| / mean(L, R). The magnitudes keep it in [0, 2] when
+    the signs differ: a gallop whose left foot always lands behind the right has step
+    lengths +0.3 m and -0.26 m, an index of 2 (the most asymmetric), not 28."""
+    mean = 0.5 * (abs(left) + abs(right))
+    return abs(left - right) / mean if np.isfinite(mean) and mean != 0 else math.nan
+
+
+def _mean(values) -> float:
+    values = [v for v in values if np.isfinite(v)]
+    return float(np.mean(values)) if values else math.nan
+
+
+def stop_shares(joint_angle_rad, spec: GaitSpec) -> np.ndarray:
+    """(10,) share of the rows each joint lies within ``stop_margin_rad`` of a limit."""
+    q = np.asarray(joint_angle_rad, float).reshape(-1, len(JOINTS))
+    lower, upper = spec.joint_limits_rad[:, 0], spec.joint_limits_rad[:, 1]
+    at_stop = (q <= lower + spec.stop_margin_rad) | (q >= upper - spec.stop_margin_rad)
+    return at_stop.mean(axis=0) if len(q) else np.full(len(JOINTS), math.nan)
+
+
+def knee_swing_stop_share(joint_angle_rad, contact: np.ndarray, spec: GaitSpec) -> float:
+    """Share of the rows with a foot off the ground in which that leg's knee is at a stop, pooled
+    over both legs (a knee in stance rests on its stop by design, its lock; in swing it bends)."""
+    q = np.asarray(joint_angle_rad, float).reshape(-1, len(JOINTS))
+    knees = [JOINTS.index(f"{side}_knee") for side in SIDES]  # in foot-column order (RIGHT, LEFT)
+    lower, upper = spec.joint_limits_rad[knees, 0], spec.joint_limits_rad[knees, 1]
+    at_stop = (q[:, knees] <= lower + spec.stop_margin_rad) | (q[:, knees] >= upper - spec.stop_margin_rad)
+    swing = ~contact[: len(q)]
+    return float(at_stop[swing].mean()) if swing.any() else math.nan
+
+
+def swing_clearance_m(steps: dict, contact: np.ndarray) -> float:
+    """Mean over complete swings of both feet of the peak height [m] of the foot's lowest contact
+    point above its median height in contact (module docstring); NaN without a complete swing."""
+    lowest = sole_points(steps)[..., 2].min(axis=2)  # (n, 2)
+    peaks = []
+    for foot, lands in enumerate(touchdowns(contact)):
+        down = contact[:, foot]
+        lifts = np.flatnonzero(down[:-1] & ~down[1:]) + 1  # first row off the ground
+        ground = float(np.median(lowest[down, foot])) if len(lands) else 0.0  # unused without a touchdown
+        for start, k in zip(lifts, np.searchsorted(lands, lifts)):  # k: the touchdown that ends it
+            if k < len(lands):  # it lands again: a complete swing
+                peaks.append(float(lowest[start:lands[k], foot].max()) - ground)
+    return _mean(peaks)
+
+
+def foot_slip_m_s(steps: dict, contact: np.ndarray) -> float:
+    """Mean horizontal speed [m/s] of the feet between consecutive rows in contact at both ends."""
+    t = np.asarray(steps["t_s"], float)
+    points = sole_points(steps)  # (n, 2, k, 3)
+    lowest = np.argmin(points[:-1, :, :, 2], axis=2)[..., None, None]  # per row pair and foot
+    before = np.take_along_axis(points[:-1], lowest, axis=2)[:, :, 0, :2]
+    after = np.take_along_axis(points[1:], lowest, axis=2)[:, :, 0, :2]
+    both = contact[1:] & contact[:-1]  # (n - 1, 2)
+    speed = np.linalg.norm(after - before, axis=-1) / np.diff(t)[:, None]
+    return float(speed[both].mean()) if both.any() else math.nan
+
+
+def gait_cycle(values, starts, points: int = 101) -> tuple[np.ndarray, np.ndarray]:
+    """Values over the gait cycle: each stride (row ``starts[k]`` to ``starts[k + 1]``)
+    resampled linearly onto 0-100 % in ``points`` points.
+
+    ``values`` is (n, ...) per row; returns the percent grid (points,) and the strides
+    (len(starts) - 1, points, ...), an empty first axis when there is no full stride.
+    """
+    values = np.asarray(values, float)
+    flat = values.reshape(len(values), -1)
+    grid = np.linspace(0.0, 100.0, points)
+    strides = []
+    for a, b in zip(starts[:-1], starts[1:]):
+        percent = np.linspace(0.0, 100.0, b - a + 1)
+        strides.append(np.stack([np.interp(grid, percent, col) for col in flat[a:b + 1].T], axis=-1))
+    shape = (len(strides), points) + values.shape[1:]
+    return grid, np.asarray(strides).reshape(shape)
+
+
+def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
+    """The metrics of :data:`GAIT_METRICS` for one episode (definitions: module docstring)."""
+    nan = math.nan
+    out = dict.fromkeys(GAIT_METRICS, nan)
+    x = np.asarray(steps["x_m"], float)
+    n = len(x)
+    if n == 0:
+        return out
+    contact = contacts(steps, spec)
+
+    table = step_table(steps, contact)
+    out["step_count"] = float(len(table))
+    if len(table) >= 2:
+        t = np.asarray(steps["t_s"], float)
+        span = t[table[-1][0]] - t[table[0][0]]
+        out["step_frequency_hz"] = (len(table) - 1) / span if span > 0 else nan
+    if table:
+        out["step_length_m"] = _mean([length for _, _, length, _ in table])
+    per_foot = {foot: [s for s in table if s[1] == foot] for foot in (RIGHT, LEFT)}
+    feet_x = sole_points(steps)[..., 0].mean(axis=2)
+    out["stride_length_m"] = _mean([d for foot, rows in enumerate(touchdowns(contact))
+                                    for d in np.diff(feet_x[rows, foot])])
+    out["step_time_symmetry"] = symmetry_index(*(_mean([s[3] for s in per_foot[f]]) for f in (RIGHT, LEFT)))
+    out["step_length_symmetry"] = symmetry_index(*(_mean([s[2] for s in per_foot[f]]) for f in (RIGHT, LEFT)))
+    out["hop_share"] = hop_share(steps, contact)
+    out["duty_factor"] = float(contact.mean())
+
+    shares = stop_shares(steps["joint_angle_rad"], spec)
+    for joint, share in zip(JOINTS, shares):
+        out[f"stop_share_{joint}"] = float(share)
+    out["stop_share_max"] = float(np.max(shares))
+    out["knee_swing_stop_share"] = knee_swing_stop_share(steps["joint_angle_rad"], contact, spec)
+    out["stop_share_gait_max"] = float(np.nanmax([*(sh for j, sh in zip(JOINTS, shares) if "knee" not in j),
+                                                  out["knee_swing_stop_share"]]))
+
+    out["swing_clearance_m"] = swing_clearance_m(steps, contact)
+    out["foot_slip_m_s"] = foot_slip_m_s(steps, contact)
+
+    distance = float(x[-1] - x[0])
+    power = np.abs(np.asarray(steps["joint_torque_nm"], float) * np.asarray(steps["joint_velocity_rad_s"], float))
+    work = float(power.reshape(n, -1)[1:].sum() * spec.dt_s)
+    air = air_nl(np.asarray(steps["pressure_kpa"], float).reshape(n, -1),
+                 np.asarray(steps["contraction_pct"], float).reshape(n, -1),
+                 spec.nominal_length_m, spec.inner_diameter_m, spec.muscles_per_side)
+    out["air_nl"] = air
+    if distance > 0:
+        out["cost_of_transport"] = work / (spec.mass_kg * spec.gravity_m_s2 * distance)
+        out["air_nl_per_m"] = air / distance
+    return out

@@ -1,0 +1,86 @@
+"""Curricula over the reward: the learner's weights change during training, the env's do not.
+
+The env returns every reward term unweighted (``info["reward_unweighted"]``, ``REWARD_KEYS``
+order: :mod:`pamrun.task.env`), and training stores those features in its replay buffer. A
+:class:`Reweight` transform on the buffer gives every sample, old or new, the reward of other
+weights: r' = r + sum_k (w'_k - w_k) f_k. Transitions whose physics blew up have all features
+0, so they keep their reward (0). The env, its logs and ``pamrun eval`` keep the config's weights.
+
+:class:`WalkCurriculum` (``train.walk_kvx``, ``train.walk_weights``): stand first, then walk.
+Until the "stand, learned" milestone (:func:`pamrun.task.criteria.stands_learned`) the learner
+optimises the env's reward; from it on, the forward weight is ``walk_kvx`` instead of
+``reward.kvx``, and every weight in ``walk_weights`` replaces the env's. The stage is a
+function of the run's evaluations (``evals.csv``), so a resumed run takes it up where it was.
+"""
+
+from __future__ import annotations
+
+import torch
+from torchrl.envs.transforms import Transform
+
+from pamrun.config import Config
+from pamrun.task.criteria import stands_learned
+from pamrun.task.env import REWARD_KEYS
+
+FEATURES = "reward_unweighted"  # the replay buffer's key (under "next") of the unweighted features
+
+
+class Reweight(Transform):
+    """A replay-buffer transform (``buffer.append_transform``): the sampled ``("next", "reward")``
+    re-weighted to ``weights`` from the env's ``base`` weights (both in ``REWARD_KEYS`` order).
+    With equal weights it leaves samples untouched."""
+
+    def __init__(self, base: list[float]):
+        super().__init__()
+        self.base = torch.tensor(base, dtype=torch.float64)
+        self.delta = torch.zeros_like(self.base)
+
+    def set_weights(self, weights: list[float]) -> None:
+        self.delta = torch.tensor(weights, dtype=torch.float64) - self.base
+
+    def forward(self, tensordict):
+        changed = self.delta.nonzero().flatten().tolist()
+        if changed:
+            nxt = tensordict["next"]
+            reward, features = nxt["reward"], nxt[FEATURES]
+            for k in changed:  # one term at a time: the reward stays in its own dtype
+                reward += float(self.delta[k]) * features[..., k:k + 1].to(reward.dtype)
+        return tensordict
+
+
+class WalkCurriculum:
+    """``train.walk_kvx``'s two stages on a :class:`Reweight` of the learner's replay buffer."""
+
+    def __init__(self, cfg: Config):
+        self.cfg, self.kvx, self.walking = cfg, cfg.train.walk_kvx, False
+        self.weights = {**{k: getattr(cfg.reward, k) for k in REWARD_KEYS}, **cfg.train.walk_weights,
+                        **({"kvx": self.kvx} if self.kvx is not None else {})}  # the walking stage's
+        self.since: int | None = None  # frames of the evaluation that started the walking stage
+        self.transform = Reweight([getattr(cfg.reward, k) for k in REWARD_KEYS])
+
+    def replay(self, rows: list[dict]) -> None:
+        """Take up the stage a resumed run was in, from its evals.csv rows."""
+        for row in rows:
+            self.observe(float(row["stand_rate"]), int(row["frames"]))
+
+    def observe(self, stand_rate: float, frames: int) -> bool:
+        """Take an evaluation into account; True when it starts the walking stage."""
+        if not self.active or self.walking or not stands_learned(stand_rate, frames, self.cfg):
+            return False
+        self.walking, self.since = True, frames
+        self.transform.set_weights([self.weights[k] for k in REWARD_KEYS])
+        return True
+
+    @property
+    def active(self) -> bool:
+        return self.kvx is not None or bool(self.cfg.train.walk_weights)
+
+    def changed(self) -> dict[str, float]:
+        """The walking stage's weights that differ from the env's."""
+        return {k: w for k, w in self.weights.items() if w != getattr(self.cfg.reward, k)}
+
+    def describe(self) -> str:
+        changed = ", ".join(f"{k} {getattr(self.cfg.reward, k):g} -> {w:g}" for k, w in self.changed().items())
+        return (f"Walking stage of the curriculum since {self.since} frames, when it first stood in every "
+                f"evaluation episode: the learner's weights {changed} (train.walk_kvx = {self.kvx}, "
+                f"train.walk_weights; the env keeps reward.*).")

@@ -1,0 +1,381 @@
+"""Actor, critic, losses and exploration of DDPG and TD3, from TorchRL parts (thesis §9.3, 9.5).
+
+* Actor (Table 9.1): 43 -> FC400 -> ReLU -> FC300 -> ReLU -> FC10 -> tanh.
+* Critic (Table 9.2): observation path 43 -> FC400 -> ReLU -> FC300; action path
+  10 -> FC300; the two added -> ReLU -> FC1.
+* ``ddpg``: the loss of TorchRL's ``DDPGLoss`` with TorchRL's Ornstein-Uhlenbeck exploration,
+  whose variance starts at 0.5 and decays by 1e-5 per step (Table 9.4, as MATLAB's
+  ``VarianceDecayRate``).
+* ``td3``: the loss of ``TD3Loss`` (twin critics, target policy smoothing) with delayed
+  actor updates and Gaussian exploration, the thesis' proposed next step (§13).
+
+The losses are computed on plain tensors by :class:`Learner` (checked against TorchRL's).
+
+Output layers start uniform in +-3e-3 (the MathWorks example uses 5e-3; DDPG's paper 3e-3).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+
+import torch
+from tensordict.nn import TensorDictModule, TensorDictSequential
+from torch import nn
+from torchrl.modules import (
+    AdditiveGaussianModule,
+    OrnsteinUhlenbeckProcessModule,
+    TanhNormal,
+)
+
+from pamrun.config import AlgoConfig
+
+ALGOS = ("ddpg", "td3", "sac")
+
+
+class ThesisActor(nn.Module):
+    """Table 9.1: observation -> action in [-1, 1]."""
+
+    def __init__(self, obs_size: int, action_size: int, hidden: tuple[int, int], init_scale: float):
+        super().__init__()
+        self.net = nn.Sequential(
+            nn.Linear(obs_size, hidden[0]), nn.ReLU(),
+            nn.Linear(hidden[0], hidden[1]), nn.ReLU(),
+            nn.Linear(hidden[1], action_size), nn.Tanh(),
+        )
+        nn.init.uniform_(self.net[4].weight, -init_scale, init_scale)
+        nn.init.uniform_(self.net[4].bias, -init_scale, init_scale)
+
+    def forward(self, observation: torch.Tensor) -> torch.Tensor:
+        return self.net(observation)
+
+
+class SquashedGaussianActor(ThesisActor):
+    """SAC's policy on the thesis' actor: tanh(N(mu(s), sigma(s))), mu from Table 9.1's network
+    without its tanh, log sigma from a linear head on its last hidden layer.
+
+    ``forward`` is the deterministic policy tanh(mu(s)), the part an agent file stores
+    (:meth:`Learner.policy_state`), so ``pamrun eval`` runs a SAC agent like any other."""
+
+    LOG_STD_RANGE = (-5.0, 2.0)  # clamp of log sigma (as CleanRL's SAC)
+
+    def __init__(self, obs_size: int, action_size: int, hidden: tuple[int, int], init_scale: float):
+        super().__init__(obs_size, action_size, hidden, init_scale)
+        self.log_std_head = nn.Linear(hidden[1], action_size)
+
+    def sample(self, observation: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """A reparametrised action and its log-probability (with tanh's change of variables):
+        TorchRL's ``TanhNormal``, scored at the pre-tanh sample (``rsample_and_log_prob``), not
+        at atanh(action), which is lost once tanh saturates."""
+        h = self.net[:4](observation)
+        log_std = self.log_std_head(h).clamp(*self.LOG_STD_RANGE)
+        # safe_tanh=False: TorchRL's default clamps |a| to 1 - 1e-6 (saturated actions move by 1e-6)
+        dist = TanhNormal(self.net[4](h), log_std.exp(), event_dims=1, safe_tanh=False)
+        action, log_prob = dist.rsample_and_log_prob()  # SAC updates ~5-9 % slower than by hand (benchmarks/)
+        return action, log_prob.unsqueeze(-1)
+
+
+class _Sampler(nn.Module):
+    """The collector's SAC policy: an action sampled from the actor's distribution."""
+
+    def __init__(self, actor: SquashedGaussianActor):
+        super().__init__()
+        self.actor = actor
+
+    def forward(self, observation: torch.Tensor) -> torch.Tensor:
+        with torch.no_grad():
+            return self.actor.sample(observation)[0]
+
+
+class ThesisCritic(nn.Module):
+    """Table 9.2: Q(observation, action) with separate observation and action paths."""
+
+    def __init__(self, obs_size: int, action_size: int, hidden: tuple[int, int], init_scale: float):
+        super().__init__()
+        self.obs_path = nn.Sequential(nn.Linear(obs_size, hidden[0]), nn.ReLU(), nn.Linear(hidden[0], hidden[1]))
+        self.action_path = nn.Linear(action_size, hidden[1])
+        self.head = nn.Sequential(nn.ReLU(), nn.Linear(hidden[1], 1))
+        nn.init.uniform_(self.head[1].weight, -init_scale, init_scale)
+        nn.init.uniform_(self.head[1].bias, -init_scale, init_scale)
+
+    def forward(self, observation: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
+        return self.head(self.obs_path(observation) + self.action_path(action))
+
+
+class ConcatCritic(nn.Module):
+    """Q(observation, action) with both concatenated at the input, then two hidden layers
+    (Fujimoto et al.'s TD3, CleanRL): Q is nonlinear in the action through both layers, where
+    Table 9.2's critic adds the action after the first and is piecewise linear in it through
+    one ReLU layer, whose maximum over the action box tends to lie at a corner."""
+
+    def __init__(self, obs_size: int, action_size: int, hidden: tuple[int, int], init_scale: float):
+        super().__init__()
+        self.net = nn.Sequential(nn.Linear(obs_size + action_size, hidden[0]), nn.ReLU(),
+                                 nn.Linear(hidden[0], hidden[1]), nn.ReLU(), nn.Linear(hidden[1], 1))
+        nn.init.uniform_(self.net[4].weight, -init_scale, init_scale)
+        nn.init.uniform_(self.net[4].bias, -init_scale, init_scale)
+
+    def forward(self, observation: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
+        return self.net(torch.cat([observation, action], dim=-1))
+
+
+def make_actor(cfg: AlgoConfig, obs_size: int, action_size: int) -> TensorDictModule:
+    cls = SquashedGaussianActor if cfg.name == "sac" else ThesisActor
+    net = cls(obs_size, action_size, tuple(cfg.hidden_sizes), cfg.output_init_scale)
+    return TensorDictModule(net, in_keys=["observation"], out_keys=["action"])
+
+
+def make_critic(cfg: AlgoConfig, obs_size: int, action_size: int) -> nn.Module:
+    cls = ConcatCritic if cfg.critic == "concat" else ThesisCritic
+    return cls(obs_size, action_size, tuple(cfg.hidden_sizes), cfg.output_init_scale)
+
+
+def make_exploration(cfg: AlgoConfig, actor: TensorDictModule, action_spec) -> TensorDictSequential:
+    """The actor followed by TorchRL's exploration noise module for this algorithm (SAC: its own
+    sampled actions)."""
+    if cfg.name == "sac":
+        return TensorDictSequential(TensorDictModule(_Sampler(actor.module), in_keys=["observation"],
+                                                     out_keys=["action"]))
+    if cfg.name == "ddpg":
+        noise = OrnsteinUhlenbeckProcessModule(
+            spec=action_spec,
+            sigma=math.sqrt(cfg.noise_variance),
+            theta=cfg.ou_theta,
+            dt=cfg.ou_dt_s,
+            eps_init=1.0,
+            eps_end=1.0,  # the decay is set by set_noise_scale (exponential, as MATLAB's)
+        )
+    else:
+        noise = AdditiveGaussianModule(
+            spec=action_spec, sigma_init=1.0, sigma_end=1.0, mean=0.0, std=math.sqrt(cfg.noise_variance)
+        )
+    return TensorDictSequential(actor, noise)
+
+
+def noise_scale(cfg: AlgoConfig, frames: int) -> float:
+    """Multiplier of the noise's standard deviation after ``frames`` steps.
+
+    The variance decays as (1 - decay)^frames (MATLAB's VarianceDecayRate, Table 9.4) and
+    never falls below ``noise_variance_min``.
+    """
+    variance = max(cfg.noise_variance * (1.0 - cfg.noise_decay) ** frames, cfg.noise_variance_min)
+    return math.sqrt(variance / cfg.noise_variance)
+
+
+def set_noise_scale(explore: TensorDictSequential, scale: float) -> None:
+    """Write the noise multiplier into TorchRL's exploration module (its ``eps``/``sigma`` buffer);
+    SAC's exploration is its own entropy-tuned spread, left alone."""
+    noise = explore.module[-1]
+    if isinstance(noise, OrnsteinUhlenbeckProcessModule):
+        noise.eps.fill_(scale)
+    elif isinstance(noise, AdditiveGaussianModule):
+        noise.sigma.fill_(scale)
+
+
+class Learner:
+    """DDPG's learner, and the base of every algorithm's: networks, targets, exploration, optimisers.
+
+    ``update(sample)`` is one gradient step of the critic(s) and, every
+    ``actor_update_every`` steps, of the actor and a soft update of every target network.
+    It computes exactly what TorchRL's ``DDPGLoss`` (``ddpg``) and ``TD3Loss`` (``td3``,
+    :class:`TD3Learner`) do with ``delay_actor=delay_value=True`` and a TD(0) target (a test
+    checks loss values and gradients against them), but on plain tensors: on 2 CPU cores
+    the losses' TensorDict and vmap plumbing costs a third of an update
+    (benchmarks/train_throughput.py).
+
+    * critic target: y = r + gamma (1 - terminated) min_k Q'_k(s', a'), with a' = pi'(s')
+      (:meth:`next_action`; TD3 adds its target policy smoothing);
+    * critic loss: sum over the critics of mean(loss_function(Q_k(s, a), y));
+    * actor loss: -mean(Q_1(s, pi(s)));
+    * targets: theta' <- theta' + tau (theta - theta') (TorchRL's ``SoftUpdate``).
+
+    An algorithm is a subclass that overrides :meth:`next_action`, :meth:`actor_loss` or
+    :meth:`after_actor_step` (``LEARNERS`` maps ``algo.name`` to it).
+    """
+
+    follows_actor_target = True  # the actor has a target network that follows it
+
+    def __init__(self, cfg: AlgoConfig, obs_size: int, action_size: int, action_spec):
+        self.cfg = cfg
+        self.actor = make_actor(cfg, obs_size, action_size)  # a TensorDictModule, for the collector
+        self.critics = nn.ModuleList(make_critic(cfg, obs_size, action_size) for _ in range(n_critics(cfg)))
+        self.actor_target = copy.deepcopy(self.actor.module).requires_grad_(False)  # unused by SAC
+        self.critic_targets = copy.deepcopy(self.critics).requires_grad_(False)
+        self.explore = make_exploration(cfg, self.actor, action_spec)
+        self.low, self.high = action_spec.space.low, action_spec.space.high
+        self.critic_params = list(self.critics.parameters())
+        self.actor_params = list(self.actor.module.parameters())
+        # fused: one kernel per step for all parameters, ~15 % faster updates on 2 CPU cores
+        self.critic_opt = torch.optim.Adam(self.critic_params, lr=cfg.critic_lr, fused=True)
+        self.actor_opt = torch.optim.Adam(self.actor_params, lr=cfg.actor_lr, fused=True)
+        self._pairs = [(list(self.critic_targets.parameters()), self.critic_params)]
+        if self.follows_actor_target:
+            self._pairs.append((list(self.actor_target.parameters()), self.actor_params))
+        self._distance = {"l2": nn.functional.mse_loss, "l1": nn.functional.l1_loss,
+                          "smooth_l1": nn.functional.smooth_l1_loss}[cfg.loss_function]
+        self.updates = 0
+        # The last losses, for logging; the actor's is set only on actor updates (TD3: every 2nd),
+        # so a run resumed between two of them has none yet.
+        self._actor_loss: torch.Tensor | None = None
+        self._critic_loss: torch.Tensor | None = None
+
+    def next_action(self, next_obs, action) -> tuple[torch.Tensor, torch.Tensor | float]:
+        """The bootstrap action a' and what the target subtracts from min_k Q'_k(s', a')."""
+        return self.actor_target(next_obs), 0.0
+
+    def critic_loss(self, obs, action, reward, next_obs, terminated) -> torch.Tensor:
+        with torch.no_grad():
+            next_action, correction = self.next_action(next_obs, action)
+            next_q = self.critic_targets[0](next_obs, next_action)
+            for target in self.critic_targets[1:]:
+                next_q = torch.min(next_q, target(next_obs, next_action))
+            y = reward + self.cfg.gamma * (~terminated) * (next_q - correction)
+        return sum(self._distance(critic(obs, action), y) for critic in self.critics)
+
+    def actor_loss(self, obs) -> torch.Tensor:
+        return -self.critics[0](obs, self.actor.module(obs)).mean()
+
+    def after_actor_step(self) -> None:
+        """What follows each actor step, before the targets' soft update (SAC: its temperature)."""
+
+    def update(self, sample, actor: bool = True) -> None:
+        """One update on a replay sample (a TensorDict with TorchRL's transition keys); with
+        ``actor=False`` only the critics learn (the targets follow on the actor's schedule)."""
+        obs, action = sample["observation"], sample["action"]
+        nxt = sample["next"]
+        critic_loss = self.critic_loss(obs, action, nxt["reward"], nxt["observation"], nxt["terminated"])
+        self.critic_opt.zero_grad()
+        critic_loss.backward()
+        nn.utils.clip_grad_norm_(self.critic_params, self.cfg.grad_clip)
+        self.critic_opt.step()
+        if self.updates % self.cfg.actor_update_every == 0 and not actor:
+            self.soft_update()
+        elif self.updates % self.cfg.actor_update_every == 0:
+            for p in self.critic_params:  # the actor's gradient must not touch the critic
+                p.requires_grad_(False)
+            actor_loss = self.actor_loss(obs)
+            self.actor_opt.zero_grad()
+            actor_loss.backward()
+            for p in self.critic_params:
+                p.requires_grad_(True)
+            nn.utils.clip_grad_norm_(self.actor_params, self.cfg.grad_clip)
+            self.actor_opt.step()
+            self.after_actor_step()
+            self.soft_update()
+            self._actor_loss = actor_loss.detach()
+        self.updates += 1
+        self._critic_loss = critic_loss.detach()
+
+    @torch.no_grad()
+    def soft_update(self) -> None:
+        """theta' <- theta' + tau (theta - theta'), one ``lerp_`` per tensor: the numbers of
+        ``torch._foreach_lerp_`` (benchmarks/agent_update.py). TorchRL's ``SoftUpdate`` does the
+        same lerp_ but needs a ``LossModule``'s target parameters, which the Learner does not hold."""
+        tau = self.cfg.target_smoothing
+        for targets, params in self._pairs:
+            for target, param in zip(targets, params):
+                target.lerp_(param, tau)
+
+    def losses(self) -> tuple[float, float]:
+        """The last (actor, critic) losses, for logging (nan where there is none yet)."""
+        return tuple(math.nan if t is None else t.item() for t in (self._actor_loss, self._critic_loss))
+
+    def q0(self, observations: torch.Tensor) -> list[float]:
+        """Q(s, pi(s)) of each observation: the thesis' Q0 curve at episode starts (Fig. 10.24)."""
+        with torch.no_grad():
+            return self.critics[0](observations, self.actor.module(observations)).reshape(-1).tolist()
+
+    def policy_state(self) -> dict:
+        """The deterministic policy's weights (thesis Table 9.1's actor): what an agent file holds."""
+        return {k: v for k, v in self.actor.module.state_dict().items() if k.startswith("net.")}
+
+    def parameters(self) -> list[torch.Tensor]:
+        """Every learned or target tensor (what a checkpoint writes, with two Adam moments each)."""
+        return [*self.actor_params, *self.critic_params, *self.actor_target.parameters(),
+                *self.critic_targets.parameters()]
+
+    def state_dict(self) -> dict:
+        return {"networks": {"actor": self.actor.module.state_dict(), "critics": self.critics.state_dict(),
+                             "actor_target": self.actor_target.state_dict(),
+                             "critic_targets": self.critic_targets.state_dict()},
+                "actor_opt": self.actor_opt.state_dict(), "critic_opt": self.critic_opt.state_dict()}
+
+    def load_state_dict(self, state: dict, updates: int) -> None:
+        if "networks" not in state:
+            raise ValueError("resume state of an earlier pamrun (TorchRL loss state): continue it with the pamrun that wrote it")
+        nets = state["networks"]
+        self.actor.module.load_state_dict(nets["actor"])
+        self.critics.load_state_dict(nets["critics"])
+        self.actor_target.load_state_dict(nets["actor_target"])
+        self.critic_targets.load_state_dict(nets["critic_targets"])
+        self.actor_opt.load_state_dict(state["actor_opt"])
+        self.critic_opt.load_state_dict(state["critic_opt"])
+        self.updates = updates
+
+
+class TD3Learner(Learner):
+    """TD3 (Fujimoto et al. 2018): twin critics (``n_critics``), delayed actor updates
+    (``algo.actor_update_every``) and target policy smoothing:
+    a' = clamp(pi'(s') + clamp(N(0, policy_noise), +-noise_clip)) inside the action box."""
+
+    def next_action(self, next_obs, action):
+        cfg = self.cfg
+        noise = (torch.randn_like(action) * cfg.policy_noise).clamp(-cfg.noise_clip, cfg.noise_clip)
+        return torch.max(torch.min(self.actor_target(next_obs) + noise, self.high), self.low), 0.0
+
+
+class SACLearner(Learner):
+    """SAC (Haarnoja et al. 2018, as CleanRL's ``sac_continuous_action.py``): twin critics,
+    a' ~ pi(s') and y = r + gamma (1 - terminated) (min_k Q'_k(s', a') - alpha log pi(a'|s'));
+    actor loss mean(alpha log pi(a|s) - min_k Q_k(s, a)) with a ~ pi(s) reparametrised;
+    alpha learned towards an entropy of ``target_entropy`` per action. Its tanh change of
+    variables makes saturated actions improbable, where a deterministic actor drifts into
+    full-band commands. It bootstraps from its current actor: no actor target follows."""
+
+    follows_actor_target = False
+
+    def __init__(self, cfg: AlgoConfig, obs_size: int, action_size: int, action_spec):
+        super().__init__(cfg, obs_size, action_size, action_spec)
+        self.log_alpha = torch.tensor(math.log(cfg.init_alpha), requires_grad=True)  # the temperature
+        self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=cfg.actor_lr)
+        self.target_entropy = cfg.target_entropy * action_size
+
+    def next_action(self, next_obs, action):
+        next_action, next_log_prob = self.actor.module.sample(next_obs)
+        return next_action, self.log_alpha.exp() * next_log_prob
+
+    def actor_loss(self, obs) -> torch.Tensor:
+        action, log_prob = self.actor.module.sample(obs)
+        q = torch.min(self.critics[0](obs, action), self.critics[1](obs, action))
+        self._log_prob = log_prob.detach()
+        return (self.log_alpha.exp().detach() * log_prob - q).mean()
+
+    def after_actor_step(self) -> None:
+        """Move alpha so that the policy's entropy approaches the target."""
+        loss = -(self.log_alpha * (self._log_prob + self.target_entropy)).mean()
+        self.alpha_opt.zero_grad()
+        loss.backward()
+        self.alpha_opt.step()
+
+    def state_dict(self) -> dict:
+        return {**super().state_dict(), "log_alpha": self.log_alpha.detach().clone(),
+                "alpha_opt": self.alpha_opt.state_dict()}
+
+    def load_state_dict(self, state: dict, updates: int) -> None:
+        super().load_state_dict(state, updates)
+        with torch.no_grad():
+            self.log_alpha.copy_(state["log_alpha"])
+        self.alpha_opt.load_state_dict(state["alpha_opt"])
+
+
+LEARNERS = {"ddpg": Learner, "td3": TD3Learner, "sac": SACLearner}  # algo.name -> its learner
+
+
+def n_critics(cfg: AlgoConfig) -> int:
+    """Critics the algorithm learns: one (DDPG) or the twin critics of TD3 and SAC."""
+    return 1 if cfg.name == "ddpg" else 2
+
+
+def make_learner(cfg: AlgoConfig, obs_size: int, action_size: int, action_spec) -> Learner:
+    """The learner of ``cfg.name`` for an env with these sizes and action spec."""
+    return LEARNERS[cfg.name](cfg, obs_size, action_size, action_spec)

@@ -1,0 +1,1 @@
+"""`pamrun sweep`: grids of trainings with their summaries, and Optuna searches."""

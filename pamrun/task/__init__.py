@@ -1,0 +1,1 @@
+"""The walking task: the Gymnasium env, its reward terms and gait clock, criteria, perturbations and symmetry."""

@@ -1,0 +1,121 @@
+"""Domain randomisation during training (``train.randomize``): the robustness suite's
+perturbations, drawn per episode.
+
+Each episode, with probability ``train.randomize_prob``, the robot and task carry
+``train.randomize_count`` distinct perturbations named in ``train.randomize`` (defined in
+``eval.perturbations``, the suite's own: mass, friction, regulator lag, top pressure,
+observation and start noise, pushes), drawn uniformly or, with ``train.randomize_weights``, in
+proportion to their weights (1 for a name it leaves out; drawn without replacement, so a name
+of weight w among n of weight 1 comes first with chance w / (w + n)), each at its own
+strength s drawn uniformly in [0, ``train.randomize_reach``] (or the name's own
+``train.randomize_reaches``) of the way from the run's own config to it
+(:func:`pamrun.task.spec.perturb`: a factor f becomes 1 + s (f - 1); s > 1 goes beyond the
+suite's size, for a margin). Factors compose (mass x1.1 and x0.9 both drawn: their product);
+two perturbations that set the same value (the pushes) are never drawn together. A push comes at a time drawn uniformly between 1 s
+and 1 s before the episode's end, so a policy cannot learn when it comes. Otherwise the
+episode is the run's nominal robot and task. The draws come from the env's own seeded
+generator, so a run stays reproducible.
+
+The env is rebuilt for a perturbed episode (the suite's mechanism, so training and testing
+perturb alike); the nominal one is kept and reused.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from pamrun.config import Config, ConfigError, flatten
+from pamrun.task.env import PamWalkerEnv
+from pamrun.task.spec import perturb
+
+PUSH_MARGIN_S = 1.0  # a randomised push starts at least this long after the start and before the end
+
+
+class RandomizedWalker(gym.Env):
+    """PamWalker-v0 whose robot and task are redrawn at every reset (module docstring)."""
+
+    metadata = PamWalkerEnv.metadata
+
+    def __init__(self, kwargs: dict[str, dict], perturbations: dict[str, Any], prob: float, reach: float,
+                 count: int = 1, weights: dict[str, float] | None = None, reaches: dict[str, float] | None = None):
+        self.kwargs, self.perturbations, self.prob, self.count = kwargs, perturbations, prob, count
+        self.reach = {n: (reaches or {}).get(n, reach) for n in perturbations}  # each name's reach
+        self.names = sorted(perturbations)
+        w = np.array([(weights or {}).get(n, 1.0) for n in self.names])
+        self.p = w / w.sum() if weights else None  # draw probabilities in names order (None: uniform)
+        self.nominal = self.env = PamWalkerEnv(**kwargs)
+        nominal = self.nominal  # its validated sections, reused for the sections a draw leaves alone
+        self.typed = {"body": nominal.body_cfg, "muscle": nominal.muscle_cfg, "reward": nominal.reward_cfg,
+                      "env": nominal.env_cfg}
+        self.action_space, self.observation_space = self.env.action_space, self.env.observation_space
+        self.drawn: tuple[tuple[str, float], ...] = ()  # this episode's perturbations and strengths
+
+    @classmethod
+    def from_config(cls, kwargs: dict[str, dict], cfg: Config) -> RandomizedWalker:
+        """The env ``cfg.train``'s randomisation settings describe, around the env keyword arguments ``kwargs``."""
+        t = cfg.train
+        return cls(kwargs, {n: cfg.eval.perturbations[n] for n in t.randomize}, t.randomize_prob, t.randomize_reach,
+                   t.randomize_count, t.randomize_weights, t.randomize_reaches)
+
+    def draw(self) -> dict[str, dict]:
+        """This episode's env keyword arguments (and ``self.drawn``)."""
+        rng = self.np_random
+        self.drawn = ()
+        if not self.names or rng.random() >= self.prob:
+            return self.kwargs
+        kwargs, taken = self.kwargs, set()
+        n = len(self.names)
+        order = rng.permutation(n) if self.p is None else rng.choice(n, size=n, replace=False, p=self.p)
+        for k in order.tolist():
+            name = self.names[k]
+            sets = set(flatten(self.perturbations[name].values))
+            if len(self.drawn) == self.count or sets & taken:
+                continue
+            strength = float(rng.uniform(0.0, self.reach[name]))
+            kwargs = perturb(kwargs, self.perturbations[name], f"train.randomize.{name}", strength)
+            self.drawn, taken = (*self.drawn, (name, strength)), taken | sets
+        env = kwargs["env"]
+        if any(env["push_impulse_ns"]):
+            latest = env["episode_s"] - PUSH_MARGIN_S - env["push_duration_s"]
+            env["push_time_s"] = float(rng.uniform(PUSH_MARGIN_S, max(PUSH_MARGIN_S, latest)))
+        return kwargs
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        kwargs = self.draw()
+        new = self.nominal if kwargs is self.kwargs else PamWalkerEnv(**{
+            k: self.typed[k] if v is self.kwargs[k] else v for k, v in kwargs.items()})
+        if self.env is not self.nominal and self.env is not new:
+            self.env.close()
+        self.env = new
+        return self.env.reset(seed=int(self.np_random.integers(2**31)), options=options)
+
+    def step(self, action):
+        return self.env.step(action)
+
+    def close(self):
+        if self.env is not self.nominal:
+            self.env.close()
+        self.nominal.close()
+
+
+def check(cfg: Config) -> None:
+    """Every perturbation ``train.randomize`` names applies to the run's robot and task, at its
+    full reach too (friction x0.7 at reach 4 would be negative): a ConfigError naming the key
+    otherwise, before the run writes anything (its names are checked against
+    ``eval.perturbations`` with the config)."""
+    from dataclasses import asdict
+
+    kwargs = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}
+    t = cfg.train
+    for name in t.randomize:
+        perturb(kwargs, cfg.eval.perturbations[name], f"eval.perturbations.{name}")
+        reach = t.randomize_reaches.get(name, t.randomize_reach)
+        try:
+            perturb(kwargs, cfg.eval.perturbations[name], f"eval.perturbations.{name}", reach)
+        except ConfigError as e:
+            key = f"train.randomize_reaches.{name}" if name in t.randomize_reaches else "train.randomize_reach"
+            raise ConfigError(key, f"{name} at strength {reach:g} is impossible: {e}") from None

@@ -1,0 +1,1 @@
+"""`pamrun train`: the training recipe and what it prints."""
