@@ -15,7 +15,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from pamrun.bench.lab import print_hysteresis_table
+from pamrun.bench.muscle import print_hysteresis_table
 from pamrun.config import MuscleConfig
 from pamrun.evaluation import figures
 from pamrun.physics.hysteresis import hysteresis_loop

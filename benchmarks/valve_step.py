@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from pamrun.bench.lab import print_valve_table, valve_step_responses
+from pamrun.bench.muscle import print_valve_table, valve_step_responses
 from pamrun.config import MuscleConfig
 from pamrun.evaluation import figures
 

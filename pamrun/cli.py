@@ -27,14 +27,14 @@ from pamrun.runs import machine  # noqa: F401  (registers the config resolvers)
 # A module may also define ``check_config(config)``: what its command needs beyond valid
 # values (e.g. ``pamrun eval``: a checkpoint to read), checked before its directory exists.
 COMMANDS: dict[str, tuple[str, str, str]] = {
-    "muscle step": ("pamrun.bench.lab", "muscle_step", "step responses of one antagonistic pair vs thesis §10.1"),
-    "muscle calibrate": ("pamrun.bench.lab", "muscle_calibrate", "fit the spring table S(P) to the §10.1 step responses"),
-    "muscle curves": ("pamrun.bench.lab", "muscle_curves", "both force laws vs measured, and the surface (Figs 8.9, 8.10)"),
-    "muscle valve": ("pamrun.bench.lab", "muscle_valve", "regulator step 0 -> 600 kPa: model=lag vs model=flow, rise times"),
-    "muscle hysteresis": ("pamrun.bench.lab", "muscle_hysteresis", "a muscle cycled at one pressure: the loop, its area"),
-    "body": ("pamrun.bench.lab", "body", "generate the robot: robot.xml, body.json, robot.png (thesis §8.1-8.2)"),
-    "openloop": ("pamrun.bench.lab", "openloop", "pressure steps on each joint, torso fixed (thesis §10.2)"),
-    "capacity": ("pamrun.bench.lab", "capacity", "muscle torque and stiffness vs standing and walking demand, per joint"),
+    "muscle step": ("pamrun.bench.muscle", "muscle_step", "step responses of one antagonistic pair vs thesis §10.1"),
+    "muscle calibrate": ("pamrun.bench.muscle", "muscle_calibrate", "fit the spring table S(P) to the §10.1 step responses"),
+    "muscle curves": ("pamrun.bench.muscle", "muscle_curves", "both force laws vs measured, and the surface (Figs 8.9, 8.10)"),
+    "muscle valve": ("pamrun.bench.muscle", "muscle_valve", "regulator step 0 -> 600 kPa: model=lag vs model=flow, rise times"),
+    "muscle hysteresis": ("pamrun.bench.muscle", "muscle_hysteresis", "a muscle cycled at one pressure: the loop, its area"),
+    "body": ("pamrun.bench.robot", "generate_body", "generate the robot: robot.xml, body.json, robot.png (thesis §8.1-8.2)"),
+    "openloop": ("pamrun.bench.robot", "openloop", "pressure steps on each joint, torso fixed (thesis §10.2)"),
+    "capacity": ("pamrun.bench.robot", "check_capacity", "muscle torque and stiffness vs standing and walking demand, per joint"),
     "train": ("pamrun.training.recipe", "main", "train DDPG, TD3 or SAC on PamWalker-v0 with TorchRL (thesis §9)"),
     "eval": ("pamrun.evaluation.evaluate", "evaluate", "test saved agents in parallel, rank them, pick the best: ckpt=<path>"),
     "export": ("pamrun.evaluation.export", "export", "write an agent's policy as ONNX or TorchScript with its metadata: ckpt=<file>"),

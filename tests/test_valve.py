@@ -267,7 +267,7 @@ def test_default_robot_stands_ten_seconds_under_flow(seed, noise, regulator):
 def test_valve_bench_reports_flow_slower_than_lag():
     """pamrun muscle valve's numbers: the lag's 10-90 % rise is 2.2 lag_s whatever the volume; the
     valve's is longer, and longer for a bigger volume (20 % vs 0 %, two muscles vs one)."""
-    from pamrun.bench.lab import valve_step_responses
+    from pamrun.bench.muscle import valve_step_responses
 
     results = valve_step_responses(MuscleConfig(), duration_s=0.4, dt_s=0.001)
     lag = [c for c in results["cases"] if c["model"] == "lag"]
