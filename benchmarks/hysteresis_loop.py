@@ -15,9 +15,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from pamrun.bench import figures
 from pamrun.bench.muscle import print_hysteresis_table
 from pamrun.config import MuscleConfig
-from pamrun.evaluation import figures
 from pamrun.physics.hysteresis import hysteresis_loop
 
 ROOT = Path(__file__).resolve().parent.parent

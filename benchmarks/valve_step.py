@@ -13,9 +13,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from pamrun.bench import figures
 from pamrun.bench.muscle import print_valve_table, valve_step_responses
 from pamrun.config import MuscleConfig
-from pamrun.evaluation import figures
 
 ROOT = Path(__file__).resolve().parent.parent
 

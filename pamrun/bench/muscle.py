@@ -14,8 +14,8 @@ import numpy as np
 from omegaconf import DictConfig
 from rich.table import Table
 
+from pamrun.bench import figures
 from pamrun.config import SPRING_FILE, Config, MuscleConfig, to_object
-from pamrun.evaluation import figures
 from pamrun.physics.force_laws import FORCE_LAWS, MARTENS_BOBLAN_DMSP20_300
 from pamrun.physics.hysteresis import hysteresis_loop
 from pamrun.physics.muscle import calibrate_spring, simulate_step
@@ -76,14 +76,13 @@ def muscle_step(dcfg: DictConfig) -> None:
     out = run_dir()
     capped = _capped_experiment_kpa(cfg)
     results = step_responses(cfg)
-    path = out / "step_response.json"
-    path.write_text(json.dumps({"spring_n_per_m": list(cfg.muscle.spring.stiffness_n_per_m), "experiments": results}))
-    figures.step_response(path, out / "step_response.png")
+    figures.record(out, "step_response", {"spring_n_per_m": list(cfg.muscle.spring.stiffness_n_per_m),
+                                          "experiments": results}, figures.step_response)
     print_step_table(results, cfg.pair.tolerance_pct)
     if capped:
         console.print(f"[yellow]muscle.max_pressure_kpa = {cfg.muscle.max_pressure_kpa:.0f} kPa caps the experiments' "
                       f"{capped:.0f} kPa: the §10.1 numbers are the thesis muscle's (muscle=thesis).[/yellow]")
-    console.print(f"Wrote {path.name}, step_response.png")
+    console.print("Wrote step_response.json, step_response.png")
 
 
 def _capped_experiment_kpa(cfg: Config) -> float:
@@ -273,9 +272,7 @@ def muscle_valve(dcfg: DictConfig) -> None:
     cfg: Config = to_object(dcfg)
     out = run_dir()
     results = valve_step_responses(cfg.muscle)
-    path = out / "valve_step.json"
-    path.write_text(json.dumps(results))
-    figures.valve_step(path, out / "valve_step.png")
+    figures.record(out, "valve_step", results, figures.valve_step)
     print_valve_table(results)
     console.print("Wrote valve_step.json, valve_step.png")
 
@@ -301,8 +298,6 @@ def muscle_hysteresis(dcfg: DictConfig) -> None:
     cfg: Config = to_object(dcfg)
     out = run_dir()
     results = hysteresis_loop(cfg.muscle)
-    path = out / "hysteresis_loop.json"
-    path.write_text(json.dumps(results))
-    figures.hysteresis_loop(path, out / "hysteresis_loop.png")
+    figures.record(out, "hysteresis_loop", results, figures.hysteresis_loop)
     print_hysteresis_table(results)
     console.print("Wrote hysteresis_loop.json, hysteresis_loop.png")

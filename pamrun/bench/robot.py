@@ -15,8 +15,8 @@ import numpy as np
 from omegaconf import DictConfig
 from rich.table import Table
 
+from pamrun.bench import figures
 from pamrun.config import Config, to_object
-from pamrun.evaluation import figures
 from pamrun.physics import body
 from pamrun.physics.actuation import MuscleDrive, joint_limits_rad
 from pamrun.physics.body import JOINTS, build_fixed_model, joint_addresses
@@ -207,9 +207,7 @@ def check_capacity(dcfg: DictConfig) -> None:
     cfg: Config = to_object(dcfg)
     out = run_dir()
     result = analyse(cfg.muscle, cfg.body)
-    path = out / "capacity.json"
-    path.write_text(json.dumps(result))
-    figures.capacity(path, out / "capacity.png")
+    figures.record(out, "capacity", result, figures.capacity)
     console.print(capacity_table(result, cfg))
     _print_capacity_verdict(result, burst=cfg.muscle.coupling == "thesis")
     air = result["air_per_cycle_nl"]

@@ -231,7 +231,7 @@ def mean_ci(values: list[float], confidence: float = 0.95) -> tuple[float, float
 def summarize(sweep_dir: Path, exclude: list[str], metric: str = "final_avg_reward",
               direction: str = "maximize") -> dict:
     """Group the jobs, write summary.csv, summary.md and curves.png; the groups and the verdict."""
-    from pamrun.evaluation import figures
+    from pamrun.sweep import figures
 
     sweep_dir = Path(sweep_dir)
     jobs = collect_jobs(sweep_dir)

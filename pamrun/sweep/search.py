@@ -114,7 +114,7 @@ def write_study(study, out: Path, metric: str, console) -> None:
     from optuna.trial import TrialState
     from rich.table import Table
 
-    from pamrun.evaluation import figures
+    from pamrun.sweep import figures
 
     trials = [t for t in study.get_trials(deepcopy=False) if not t.user_attrs.get(STALE)]
     keys = sorted({k for t in trials for k in t.params})
