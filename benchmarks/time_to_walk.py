@@ -127,7 +127,7 @@ def figure(runs: list[Path], png: Path) -> Path:
         bottom.plot(minutes, [float(r["pressure_change_mean"]) for r in rows], ".-", label=Path(run).name)
     top.set_ylabel("walk-test pass rate\n(10 selection episodes)")
     bottom.set_ylabel("pressure change (kPa/step)")
-    bottom.axhline(50, color="k", lw=0.8, ls=":", label="issue 21's target: 50")
+    bottom.axhline(50, color="k", lw=0.8, ls=":", label="target: 50")
     bottom.set_xlabel("wall-clock minutes")
     top.set_title("Evaluations during training")
     for ax in (top, bottom):

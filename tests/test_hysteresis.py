@@ -11,8 +11,8 @@ import json
 import numpy as np
 import pytest
 
-from pamrun.config import BodyConfig, ConfigError, MuscleConfig, to_object
-from pamrun.config.robot import HYSTERESIS_LAWS, RegulatorConfig, SpringConfig
+from pamrun.config import BodyConfig, ConfigError, MuscleConfig, RegulatorConfig, SpringConfig, to_object
+from pamrun.config.robot import HYSTERESIS_LAWS
 from pamrun.physics.actuation import MuscleDrive
 from pamrun.physics.hysteresis import (
     HYSTERESIS,

@@ -167,7 +167,7 @@ def test_pair_command_and_torque():
         pairs.step(v, 0.005)
         assert np.all(pairs.forces_n() >= 0)
     # Thesis coupling: once settled, both muscles sit near their zero-force contraction, so
-    # the steady torque is only S * x * r (a finding reported for the robot, issue 3).
+    # the steady torque is only S * x * r: the thesis coupling cannot hold a joint against a load.
     assert abs(pairs.torque_nm(np.full(3, 0.05))[1]) < 0.5
 
 

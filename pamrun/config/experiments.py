@@ -63,7 +63,7 @@ def _robustness_perturbations() -> dict[str, Perturbation]:
 
     Sizes chosen where the thesis is silent: +-10 % mass (cables, valves, a battery), foot
     friction x0.7 / x1.3 (floor and sole materials), the regulator twice as slow (Festo quotes
-    its proportional regulators at 50-100 ms, pamrun.config.robot.RegulatorConfig), 10 % less
+    its proportional regulators at 50-100 ms, pamrun.config.regulator.RegulatorConfig), 10 % less
     top pressure (a sagging supply), sensor noise, a 5x larger start noise, and a 10 N s push
     (100 N for 0.1 s) at 5 s forward, backward and sideways."""
     push = {"push_time_s": 5.0, "push_duration_s": 0.1}

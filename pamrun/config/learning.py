@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 from pamrun.config.checks import _non_negative, _positive, _require
+from pamrun.config.task import RewardConfig
 
 # --------------------------------------------------------------------------- learning
 
@@ -133,8 +134,6 @@ class TrainConfig:
         _require(self.walk_kvx is None or self.eval_every_frames > 0, "walk_kvx",
                  "needs evaluations during training (train.eval_every_frames > 0) to know when the agent stands")
         _require(self.walk_kvx is None or math.isfinite(self.walk_kvx), "walk_kvx", "must be finite")
-        from pamrun.config.task import RewardConfig
-
         for key, weight in self.walk_weights.items():
             _require(key in RewardConfig.__dataclass_fields__, f"walk_weights.{key}",
                      f"not a reward weight; known: {', '.join(RewardConfig.__dataclass_fields__)}")

@@ -58,8 +58,8 @@ class EnvConfig:
     max_tilt_rad: float = math.pi / 4  # |roll|, |pitch|, |yaw| limit (example's check)
     target_speed_m_s: float = 1.0  # v*: the speed reward.kspeed pays most for (the thesis' agents walked 0.6-1.1 m/s)
     speed_sigma_m_s: float = 0.5  # sigma: how fast reward.kspeed's pay falls off around v*
-    # L*: the step length reward.kstep asks for (pamrun's choice: 2.5 steps/s at 1 m/s; the
-    # first walker took 0.15 m steps at 6.4 steps/s)
+    # L*: the step length reward.kstep asks for (pamrun's choice: 2.5 steps/s at 1 m/s, against the
+    # short, quick steps an agent takes when only its speed pays)
     step_length_m: float = 0.4
     speed_command: bool = False  # the observation ends with v*, the commanded speed [m/s]: the policy is told it
     # [low, high]: v* drawn uniformly per episode (to train a commanded speed; needs speed_command);

@@ -25,7 +25,7 @@ What the thesis leaves open, and what we chose:
   cannot be one: with impedance d the joint obeys r'' = -d (K I r + B r') + (1 - d) tau / I,
   so its static stiffness (K I / R) and its stiffness against an impact (d K I times the
   inertia) differ by a factor ~(1 - d), and no solref gives both. Matching the static value
-  left the hip limits ~20x too soft in motion (a swinging leg passed its stop by 13 deg).
+  would leave the hip limits ~20x too soft in motion (a swinging leg would pass its stop by ~13 deg).
   We use MuJoCo's own stiff, critically damped stop, ``solref = (timeconst, dampratio)``
   = (0.005 s, 1) from ``BodyConfig``, which holds every limit within a degree or two.
 * Joint damping 1 N m s/rad, stiffness 0 (Table 8.2); one torque motor per hinge; a
