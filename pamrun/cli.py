@@ -17,11 +17,16 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import hydra
+import yaml
+from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from pamrun.config import CONF_DIR, ConfigError, validate
+from pamrun.config import CONF_DIR, Config, ConfigError, register_configs, validate
+from pamrun.config.docs import describe
 from pamrun.runs import machine  # noqa: F401  (registers the config resolvers)
+from pamrun.sweep.overrides import RUNTIME_KEYS, sweep_dir_for, swept_keys, task_overrides
 
 # command words -> (module, function, one-line help). Functions take the composed DictConfig.
 # A module may also define ``check_config(config)``: what its command needs beyond valid
@@ -77,11 +82,6 @@ def usage() -> str:
 
 def command_help(name: str) -> str:
     """`pamrun <command> --help`: its config groups and options, and every key it uses with its doc."""
-    import yaml
-
-    from pamrun.config import Config
-    from pamrun.config.docs import describe
-
     chosen = {}
     for entry in yaml.safe_load((CONF_DIR / "config.yaml").read_text())["defaults"]:
         if isinstance(entry, dict):
@@ -132,10 +132,6 @@ def main(argv: list[str] | None = None) -> None:
 
 def run_hydra_app(name: str, args: list[str]) -> None:
     """Run the command's task function as a Hydra app with ``args`` as its command line."""
-    import hydra
-
-    from pamrun.config import register_configs
-
     os.environ.setdefault("MUJOCO_GL", "egl")
     logging.getLogger("OpenGL").setLevel(logging.WARNING)  # PyOpenGL's import chatter
     register_configs()
@@ -148,8 +144,6 @@ def run_hydra_app(name: str, args: list[str]) -> None:
     if name == "sweep":
         args = sweep_args(args)
     if name == "sweep optuna" and not any(a.startswith("hydra.run.dir=") for a in args):
-        from pamrun.sweep.grid import sweep_dir_for
-
         folder = sweep_dir_for(args, kind="optuna")  # the same command resumes the same study
         print(f"Study directory: {folder}")
         args = [*args, f"hydra.run.dir={folder}"]
@@ -167,9 +161,7 @@ def run_hydra_app(name: str, args: list[str]) -> None:
 
 
 def sweep_args(args: list[str]) -> list[str]:
-    """A sweep is always a multirun, in a folder named by its command line (see pamrun.sweep.grid)."""
-    from pamrun.sweep.grid import RUNTIME_KEYS, sweep_dir_for, swept_keys
-
+    """A sweep is always a multirun, in a folder named by its command line (pamrun.sweep.overrides)."""
     informational = {"--cfg", "-c", "--info", "-i", "--help", "-h", "--hydra-help"} & set(args)
     check_group_options(args)
     if not informational and not {"-m", "--multirun"} & set(args):
@@ -184,14 +176,9 @@ def sweep_args(args: list[str]) -> list[str]:
     return [*args, f"hydra.job.config.override_dirname.exclude_keys=[{','.join(fixed)}]"]
 
 
-
 def check_group_options(args: list[str]) -> None:
     """Every option named for a config group (``algo=ppo,td3``) must exist, before Hydra
     creates a sweep folder for jobs that could never compose."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-
-    from pamrun.sweep.grid import task_overrides
-
     for override in OverridesParser.create().parse_overrides(task_overrides(args)):
         group = override.key_or_group
         if "." in group or not (CONF_DIR / group).is_dir():

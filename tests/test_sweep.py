@@ -16,14 +16,8 @@ import pytest
 import torch
 
 from pamrun.config import CONF_DIR, register_configs
-from pamrun.sweep.grid import (
-    collect_jobs,
-    compare,
-    group_key,
-    mean_ci,
-    sweep_dir_for,
-    swept_keys,
-)
+from pamrun.sweep.grid import collect_jobs, compare, group_key, mean_ci
+from pamrun.sweep.overrides import sweep_dir_for, swept_keys
 from tests.conftest import run_pamrun
 
 TINY = ["train=smoke", "train.max_frames=400", "train.init_random_frames=200", "train.updates_per_frame=0.25",

@@ -37,12 +37,18 @@ import importlib.util
 import io
 import json
 import warnings
+from importlib.metadata import version as package_version
 from pathlib import Path
 from typing import Any
 
-from pamrun.config import ConfigError, EnvConfig, MuscleConfig
+import torch
+
+import pamrun
+from pamrun.config import ConfigError, EnvConfig, MuscleConfig, to_object
 from pamrun.learning.checkpoints import Agent, CheckpointError, load_agent
+from pamrun.learning.networks import ThesisActor
 from pamrun.physics.body import JOINTS
+from pamrun.runs.files import atomic_write, run_dir, write_json
 from pamrun.task.env import OBSERVATION_UNITS, as_config, observation_structure
 
 FILE_NAMES = {"onnx": "actor.onnx", "torchscript": "actor.pt"}
@@ -71,9 +77,6 @@ def check_config(config) -> None:
 
 def export(dcfg) -> None:
     """The Hydra task of ``pamrun export``."""
-    from pamrun.config import to_object
-    from pamrun.runs.files import run_dir, write_json
-
     cfg = to_object(dcfg)
     agent = load_agent(cfg.ckpt)
     out = run_dir()
@@ -91,8 +94,6 @@ def export(dcfg) -> None:
 
 def actor_of(agent: Agent):
     """The agent's actor network in eval mode (as pamrun.evaluation.episodes.make_policy builds it)."""
-    from pamrun.learning.networks import ThesisActor
-
     net = ThesisActor(agent.obs_size, agent.action_size, tuple(agent.hidden_sizes), init_scale=1e-3)
     net.load_state_dict(agent.actor_state)
     return net.eval()
@@ -148,12 +149,8 @@ def action_scaling(muscle: MuscleConfig) -> dict[str, Any]:
 
 
 def pamrun_version() -> str:
-    import pamrun
-
     version = getattr(pamrun, "__version__", None)
     if version is None:
-        from importlib.metadata import version as package_version
-
         version = package_version("pamrun")
     return version
 
@@ -161,12 +158,8 @@ def pamrun_version() -> str:
 def write_onnx(net, obs_size: int, path: Path, meta: dict) -> Path:
     """``net`` as ONNX (legacy TorchScript-based exporter), batch dimension dynamic, ``meta``
     in metadata_props."""
-    import torch
-
-    from pamrun.runs.files import atomic_write
-
     try:
-        import onnx
+        import onnx  # optional: only pamrun export format=onnx needs it (pip install "pamrun[export]")
     except ImportError:
         raise SystemExit(f"pamrun: {ONNX_MISSING}") from None
     buffer = io.BytesIO()
@@ -183,10 +176,6 @@ def write_onnx(net, obs_size: int, path: Path, meta: dict) -> Path:
 
 def write_torchscript(net, path: Path, meta: dict) -> Path:
     """``net`` scripted, saved with ``meta`` as the extra file ``pamrun.json``."""
-    import torch
-
-    from pamrun.runs.files import atomic_write
-
     scripted = torch.jit.script(net)
     return atomic_write(path, lambda tmp: torch.jit.save(scripted, str(tmp),
                                                           _extra_files={EXTRA_FILE: json.dumps(meta)}))
@@ -196,12 +185,10 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
     """The metadata of an exported file (actor.onnx or actor.pt)."""
     path = Path(path)
     if path.suffix == ".onnx":
-        import onnx
+        import onnx  # optional: an ONNX file's metadata (pip install "pamrun[export]")
 
         props = {p.key: p.value for p in onnx.load(str(path)).metadata_props}
         return json.loads(props[METADATA_KEY])
-    import torch
-
     extra = {EXTRA_FILE: ""}
     torch.jit.load(str(path), _extra_files=extra)
     return json.loads(extra[EXTRA_FILE])

@@ -49,22 +49,20 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 
 import numpy as np
+from mujoco import mj_step
 
-from pamrun.config import LEG_JOINTS, BodyConfig, MuscleConfig
+from pamrun.config import LEG_JOINTS, BodyConfig, MuscleConfig, check_muscle_stretch
+from pamrun.physics.body import JOINTS, SIDES, joint_limits_deg, mirror_sign
 from pamrun.physics.muscle import AntagonisticPairs
 
 
 def joint_limits_rad(body: BodyConfig) -> np.ndarray:
     """(10, 2) joint limits [rad] in JOINTS order (the mirroring lives in pamrun.physics.body)."""
-    from pamrun.physics.body import SIDES, joint_limits_deg
-
     return np.deg2rad([lim for side in SIDES for lim in joint_limits_deg(body, side).values()])
 
 
 def _leg_joint_of_each_hinge() -> list[str]:
     """The LEG_JOINTS name of each of the 10 hinges, JOINTS order (both legs alike)."""
-    from pamrun.physics.body import SIDES
-
     return [joint for _ in SIDES for joint in LEG_JOINTS]
 
 
@@ -79,8 +77,6 @@ def neutral_angles_rad(muscle: MuscleConfig) -> np.ndarray:
     """(10,) angle of each joint where its pair is balanced at equal pressures, JOINTS order.
 
     The right leg mirrors the roll joints (as its limits do)."""
-    from pamrun.physics.body import SIDES, mirror_sign
-
     return np.deg2rad([getattr(muscle.neutral_deg, j) * mirror_sign(side, j) for side in SIDES for j in LEG_JOINTS])
 
 
@@ -96,8 +92,6 @@ def force_scales(muscle: MuscleConfig) -> np.ndarray:
 
 def n_actions(muscle: MuscleConfig) -> int:
     """Actions the policy gives: one per pair (antagonistic) or one per muscle (independent)."""
-    from pamrun.physics.body import JOINTS
-
     return len(JOINTS) * (2 if muscle.command == "independent" else 1)
 
 
@@ -133,8 +127,6 @@ class Coupling(ABC):
     def advance(self, voltage_v: np.ndarray, model, data, qpos_idx: np.ndarray, qvel_idx: np.ndarray, dt_s: float,
                 muscle_steps: int, physics_steps: int) -> None:
         """``muscle_steps`` times: :meth:`apply` for dt_s, then ``physics_steps`` MuJoCo steps."""
-        from mujoco import mj_step
-
         for _ in range(muscle_steps):
             self.apply(voltage_v, model, data, qpos_idx, qvel_idx, dt_s)
             mj_step(model, data, physics_steps)
@@ -272,7 +264,7 @@ class CompiledKinematicCoupling(KinematicCoupling):
     (:class:`pamrun.physics.kernels.CompiledStep`); the numpy reference's results to float rounding."""
 
     def __init__(self, muscle: MuscleConfig, pairs: AntagonisticPairs, radius_m: np.ndarray):
-        from pamrun.physics.kernels import CompiledStep
+        from pamrun.physics.kernels import CompiledStep  # heavy (numba): loaded only for muscle.kernel=numba
 
         super().__init__(muscle, pairs, radius_m)
         self.compiled = CompiledStep(self)  # writes this coupling's contraction_pct and damping in place
@@ -311,8 +303,6 @@ class MuscleDrive:
     """
 
     def __init__(self, muscle: MuscleConfig, body: BodyConfig):
-        from pamrun.config import check_muscle_stretch
-
         check_muscle_stretch(muscle, body)
         self.cfg = muscle
         self.kinematic = muscle.coupling == "kinematic"

@@ -52,15 +52,12 @@ All joints at 0 is the standing pose: legs straight down, soles flat on the floo
 from __future__ import annotations
 
 import math
-import os
 
+import mujoco  # its GL backend is chosen by pamrun.physics (MUJOCO_GL), imported first
 import numpy as np
 
-os.environ.setdefault("MUJOCO_GL", "egl")
-import mujoco  # noqa: E402
-
-from pamrun.config import LEG_JOINTS, BodyConfig  # noqa: E402  (LEG_JOINTS: one leg's hinges, their one home)
-from pamrun.config.robot import (  # noqa: E402
+from pamrun.config import LEG_JOINTS, BodyConfig  # LEG_JOINTS: one leg's hinges, their one home
+from pamrun.config.robot import (
     FOOT_HEIGHT_RATIO,
     FOOT_LENGTH_RATIO,
     FOOT_MASS_RATIO,
@@ -310,17 +307,8 @@ def _add_toe(foot_body, side: str, cfg: BodyConfig, toe: dict[str, float], r_sph
                     [length - r_sphere, cy * (width / 2 - r_sphere), 0.0], r_sphere, cfg)
 
 
-def build_spec(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = False) -> mujoco.MjSpec:
-    """The robot as an MjSpec (no XML by hand). ``fixed_torso`` welds the torso in the air."""
-    pelvis = anthropometry(cfg)["pelvis"]
-    spec = mujoco.MjSpec()
-    spec.modelname = "pamwalker"
-    spec.compiler.degree = False  # every angle below is in radians
-    spec.option.timestep = timestep_s
-    spec.option.gravity = [0, 0, -GRAVITY]
-    spec.visual.global_.offwidth = 1280
-    spec.visual.global_.offheight = 960
-
+def _add_scene(spec: mujoco.MjSpec, cfg: BodyConfig) -> None:
+    """The floor (a checkered plane with the feet's friction), the sky and a light from above."""
     tex = spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D,
                            builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, width=512, height=512,
                            rgb1=[0.82, 0.84, 0.86], rgb2=[0.62, 0.65, 0.68])
@@ -334,17 +322,9 @@ def build_spec(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = F
     world.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05], material="grid",
                    contype=1, conaffinity=1, friction=[cfg.friction_static, 0.005, 0.0001])
 
-    z_torso = standing_height_m(cfg) + (FIXED_TORSO_LIFT_M if fixed_torso else 0.0)
-    # ipos must be given: MjSpec's default (NaN) leaves the compiler to place the centre of
-    # mass at the body's pos again, i.e. twice the standing height above the floor.
-    torso = world.add_body(name=TORSO, pos=[0, 0, z_torso], mass=pelvis["mass_kg"], ipos=[0, 0, 0],
-                           inertia=_box_inertia(pelvis["mass_kg"], pelvis["x_m"], pelvis["y_m"], pelvis["z_m"]))
-    if not fixed_torso:
-        torso.add_freejoint(name="root")
-    torso.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[pelvis["x_m"] / 2, pelvis["y_m"] / 2, pelvis["z_m"] / 2],
-                   rgba=[0.25, 0.35, 0.6, 1], mass=0, **_NO_COLLIDE)
 
-    # Tracking camera, three-quarter view from the front right, aimed at mid-leg height.
+def _add_camera(torso: mujoco.MjsBody, cfg: BodyConfig) -> None:
+    """The tracking camera: a three-quarter view from the front right, aimed at mid-leg height."""
     scale = cfg.height_m / 1.80
     offset = np.array([1.9, -2.4, 0.5]) * scale
     aim = np.array([0.0, 0.0, -0.45]) * scale
@@ -355,6 +335,32 @@ def build_spec(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = F
     torso.add_camera(name=CAMERA, pos=offset.tolist(), mode=mujoco.mjtCamLight.mjCAMLIGHT_TRACKCOM,
                      xyaxes=[*right, *up], fovy=45)
 
+
+def build_spec(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = False) -> mujoco.MjSpec:
+    """The robot as an MjSpec (no XML by hand). ``fixed_torso`` welds the torso in the air."""
+    pelvis = anthropometry(cfg)["pelvis"]
+    spec = mujoco.MjSpec()
+    spec.modelname = "pamwalker"
+    spec.compiler.degree = False  # every angle below is in radians
+    spec.option.timestep = timestep_s
+    spec.option.gravity = [0, 0, -GRAVITY]
+    spec.visual.global_.offwidth = 1280
+    spec.visual.global_.offheight = 960
+
+    _add_scene(spec, cfg)
+
+    z_torso = standing_height_m(cfg) + (FIXED_TORSO_LIFT_M if fixed_torso else 0.0)
+    # ipos must be given: MjSpec's default (NaN) leaves the compiler to place the centre of
+    # mass at the body's pos again, i.e. twice the standing height above the floor.
+    inertia = _box_inertia(pelvis["mass_kg"], pelvis["x_m"], pelvis["y_m"], pelvis["z_m"])
+    torso = spec.worldbody.add_body(name=TORSO, pos=[0, 0, z_torso], mass=pelvis["mass_kg"], ipos=[0, 0, 0],
+                                    inertia=inertia)
+    if not fixed_torso:
+        torso.add_freejoint(name="root")
+    torso.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[pelvis["x_m"] / 2, pelvis["y_m"] / 2, pelvis["z_m"] / 2],
+                   rgba=[0.25, 0.35, 0.6, 1], mass=0, **_NO_COLLIDE)
+
+    _add_camera(torso, cfg)
     for side, sign in (("right", -1.0), ("left", 1.0)):
         _add_leg(torso, side, sign, cfg)
     for side in SIDES:
@@ -408,12 +414,6 @@ def match_contact_overlap(model: mujoco.MjModel, cfg: BodyConfig) -> float:
     spheres = model.geom_type == mujoco.mjtGeom.mjGEOM_SPHERE
     model.geom_solref[spheres] *= scale
     return float(scale)
-
-
-def contact_stiffness_n_per_m(cfg: BodyConfig, robot_mass_kg: float) -> tuple[float, float]:
-    """The thesis' contact stiffness (weight / overlap) [N/m] and damping [N s/m] for this robot."""
-    k = robot_mass_kg * GRAVITY / cfg.contact_overlap_m
-    return k, cfg.contact_damping_ratio * k
 
 
 def build_model(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = False) -> mujoco.MjModel:

@@ -40,9 +40,14 @@ import math
 from dataclasses import asdict
 from typing import Any
 
+import mujoco
 import numpy as np
 
 from pamrun.config import LEG_JOINTS, BodyConfig, MuscleConfig
+from pamrun.config.robot import MTP_PEAK_MOMENT_NM_PER_KG
+from pamrun.physics.actuation import MuscleDrive, joint_limits_rad
+from pamrun.physics.body import GRAVITY, JOINTS, SIDES, SPHERE_RADIUS_RATIO, build_model
+from pamrun.physics.muscle import MUSCLE_INNER_DIAMETER_M, AirMeter
 
 # Per-joint tables below are keyed by pamrun.config.LEG_JOINTS, in its order (tests/test_capacity.py checks it).
 # Peak joint moments of human walking at natural cadence, N m per kg of body mass (Winter,
@@ -66,9 +71,6 @@ _BELOW = {"ankle": ("foot", "toe"), "knee": ("shin", "foot", "toe"), "hip": ("th
 
 def _gravity_loads(body: BodyConfig) -> dict[str, dict[str, float]]:
     """Per joint group: mass carried above it [kg] and its centre-of-mass height above the joint [m]."""
-    import mujoco
-
-    from pamrun.physics.body import SIDES, build_model
 
     model = build_model(body)
     data = mujoco.MjData(model)
@@ -107,7 +109,6 @@ def _joint_capacity(drive, name: str, limits_rad: np.ndarray, pressures: dict[st
     """One left-leg joint's row: envelope over its range, walking and lean demand, stiffness.
 
     ``pressures``: ``band`` and ``full`` (agonist, antagonist) [kPa] and ``zero`` [kPa]."""
-    from pamrun.physics.body import JOINTS
 
     muscle = drive.cfg
     j = JOINTS.index(f"left_{name}")
@@ -150,7 +151,6 @@ def _cycle_air(drive, j: int, angle_rad: float, demand_nm: float, low_kpa: float
     """Air [normal litres] joint j's pair (``count`` muscles per direction) draws per gait cycle
     at the walking demand, both legs (module docstring), and the pressure [kPa] each
     direction's peak needs (None: out of reach even at the muscle's maximum)."""
-    from pamrun.physics.muscle import MUSCLE_INNER_DIAMETER_M, AirMeter
 
     muscle = drive.cfg
     meter = AirMeter(muscle.nominal_length_m, MUSCLE_INNER_DIAMETER_M[muscle.size])
@@ -181,7 +181,6 @@ def _cycle_air(drive, j: int, angle_rad: float, demand_nm: float, low_kpa: float
 
 def analyse(muscle: MuscleConfig, body: BodyConfig, n_angles: int = 91) -> dict[str, Any]:
     """The capacity table of every joint (see the module docstring); plain data for capacity.json."""
-    from pamrun.physics.actuation import MuscleDrive, joint_limits_rad
 
     drive = MuscleDrive(muscle, body)
     reg = drive.pairs.regulator
@@ -225,8 +224,6 @@ def _toe_capacity(body: BodyConfig, mass_kg: float) -> dict[str, Any]:
       spheres (their centres' distance from the hinge), and the dorsiflexion that needs. In
       stance the foot stands on its heel and ball: the toe bears only what its spring gives.
     Past ``toe_range_deg``'s dorsiflexion stop the stop (a joint limit) holds the rest."""
-    from pamrun.config.robot import MTP_PEAK_MOMENT_NM_PER_KG
-    from pamrun.physics.body import GRAVITY, SPHERE_RADIUS_RATIO
 
     k = body.toe_stiffness_nm_per_rad
     stop_deg = -body.toe_range_deg[0]

@@ -224,7 +224,7 @@ def zero_force_contraction_pct(pressure_kpa: float, law: CoefficientLaw = _DEFAU
     Searched between -3 % and 45 %. A law with no passive force (TonduLopez) is 0 everywhere
     at 0 kPa, and then the answer is the search's start, -3 %.
     """
-    from scipy.optimize import brentq
+    from scipy.optimize import brentq  # heavy (~0.5 s): only the fits use it; the env imports this module
 
     return brentq(lambda x: law.signed_force_n(x, pressure_kpa), FITTED_MIN_CONTRACTION_PCT, 45.0)
 

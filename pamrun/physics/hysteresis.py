@@ -75,11 +75,13 @@ adds the elements' stiffness to the pair's. The state lives in
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pamrun.config.robot import SPRING_REFERENCE_LENGTH_M
+from pamrun.physics.force_laws import FORCE_LAWS
 
 if TYPE_CHECKING:
     from pamrun.config import MuscleConfig, SpringConfig
@@ -167,10 +169,6 @@ def hysteresis_loop(muscle: MuscleConfig, pressures_kpa=(300.0, 600.0), center_p
     hysteresis (``none``) and with ``maxwell_slip`` (``muscle.spring``'s elements), and the loop
     area [J] of the second cycle (the first starts with the elements at rest), simulated and
     analytic (sum_i 4 f_i (A - f_i / k_i), scaled to this muscle's size and length)."""
-    from dataclasses import replace
-
-    from pamrun.physics.force_laws import FORCE_LAWS
-
     law = FORCE_LAWS[muscle.force_law](muscle.max_pressure_kpa)
     spring = replace(muscle.spring, hysteresis="maxwell_slip")
     phase = 2.0 * np.pi * np.arange(2 * steps_per_cycle + 1) / steps_per_cycle

@@ -35,6 +35,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from mujoco import mj_step
 from numba import njit
 
 from pamrun.physics.hysteresis import M_PER_PCT
@@ -422,8 +423,6 @@ class CompiledStep:
                 physics_steps: int) -> None:
         """``muscle_steps`` times :meth:`apply`, then ``physics_steps`` MuJoCo steps; the arguments
         gathered once, so between MuJoCo steps there is one kernel call and no other Python."""
-        from mujoco import mj_step
-
         first = self._mujoco_arguments(voltage_v, dt_s, model, data, qpos_idx)
         # after the first call the command is the regulator's and the coefficients exist
         later = (first[0], False, False, *first[3:])

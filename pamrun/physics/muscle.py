@@ -25,6 +25,7 @@ muscle's F (Fce - H, FL - H_L); its state lives in :attr:`FirstOrderPairDynamics
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -262,9 +263,7 @@ def calibrate_spring(muscle: MuscleConfig, pair: PairConfig) -> tuple[list[float
     interpolated linearly in pressure between fitted band centres (flat beyond them).
     Returns the table [N/m] and the indices of the fitted bands.
     """
-    from dataclasses import replace
-
-    from scipy.optimize import least_squares
+    from scipy.optimize import least_squares  # heavy (~0.5 s): only pamrun muscle calibrate needs it
 
     law = FORCE_LAWS[muscle.force_law](muscle.max_pressure_kpa)
     spring = SpringTable(muscle.spring)

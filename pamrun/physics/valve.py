@@ -67,6 +67,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pamrun.config import ConfigError
+from pamrun.config.robot import MUSCLE_INNER_DIAMETER_M
 from pamrun.physics.air import (
     AIR_TEMPERATURE_K,
     ATMOSPHERE_KPA,
@@ -275,9 +277,6 @@ def make_regulator(muscle: MuscleConfig, initial_pressure_kpa: np.ndarray, muscl
     cfg = muscle.regulator
     if cfg.model == "lag":
         return Regulator(cfg, initial_pressure_kpa)
-    from pamrun.config import ConfigError
-    from pamrun.config.robot import MUSCLE_INNER_DIAMETER_M
-
     try:
         cfg.check_supply(muscle.max_pressure_kpa)
     except ConfigError as err:

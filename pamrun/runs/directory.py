@@ -27,8 +27,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from omegaconf import OmegaConf
 
-from pamrun.config import Config, to_object, upgrade_saved_config
+from pamrun.config import Config, ConfigError, to_object, upgrade_saved_config
 from pamrun.runs.files import (
     atomic_write,
     git_commit,
@@ -77,15 +78,11 @@ class RunFiles:
 def saved_config(out: Path) -> Config:
     """The config a run directory's pamrun_config.yaml holds, upgraded to today's keys and over
     today's defaults: the one reader of a run's saved config."""
-    from omegaconf import OmegaConf
-
     saved = upgrade_saved_config(OmegaConf.to_container(OmegaConf.load(RunFiles(out).config)))
     return to_object(OmegaConf.merge(OmegaConf.structured(Config), saved))
 
 
 def config_text(cfg: Config) -> str:
-    from omegaconf import OmegaConf
-
     return OmegaConf.to_yaml(OmegaConf.structured(cfg))
 
 
@@ -189,8 +186,6 @@ class EpisodeLog(CsvLog):
 
 def check_resume(config) -> None:
     """``resume=<dir>`` must name a run with a checkpoint (run by pamrun.cli before any directory exists)."""
-    from pamrun.config import ConfigError
-
     if config.resume and not RunFiles(config.resume).last.exists():
         raise ConfigError("resume", f"{config.resume}: no training run to resume there (no checkpoints/last.pt)")
 

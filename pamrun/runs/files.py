@@ -9,8 +9,20 @@ import json
 import os
 import subprocess
 import time
+from importlib.metadata import version
 from pathlib import Path
 from typing import Any, Callable
+
+from hydra.core.hydra_config import HydraConfig
+from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+from rich.progress import Progress as RichProgress
 
 # Outside a terminal (a log file, a pipe, CI) the console is this wide, so that no table cuts a
 # cell with "…" and no path is broken: rich draws a table only as wide as its content.
@@ -19,17 +31,12 @@ LOG_WIDTH = 400
 
 def console():
     """The console a command prints to: a terminal's own width, or LOG_WIDTH outside one."""
-    from rich.console import Console
-
     terminal = Console()
     return terminal if terminal.is_terminal else Console(width=LOG_WIDTH)
 
 
 def run_dir() -> Path:
     """The Hydra run directory of this job (created by Hydra), announced on the console."""
-    from hydra.core.hydra_config import HydraConfig
-    from rich.console import Console
-
     path = Path(HydraConfig.get().runtime.output_dir)
     Console().print(f"Run directory: [bold]{path}[/bold]")
     return path
@@ -47,7 +54,7 @@ def atomic_write(path: Path, write: Callable[[Path], Any]) -> Path:
 
 def atomic_save(obj: Any, path: Path) -> Path:
     """``torch.save`` through :func:`atomic_write`."""
-    import torch
+    import torch  # heavy (~1 s): only checkpoints need it, and every command imports this module
 
     return atomic_write(path, lambda tmp: torch.save(obj, tmp))
 
@@ -79,8 +86,6 @@ def git_commit(here: Path | None = None) -> str | None:
 
 
 def package_versions() -> dict[str, str]:
-    from importlib.metadata import version
-
     return {name: version(name) for name in ("pamrun", "torch", "torchrl", "tensordict", "mujoco", "gymnasium",
                                              "numpy", "hydra-core")}
 
@@ -94,15 +99,6 @@ class Progress:
         self.bar = None
         self.last_line = 0.0
         if console.is_terminal and os.environ.get("PAMRUN_PROGRESS") != "lines":  # sweep jobs share a terminal
-            from rich.progress import (
-                BarColumn,
-                MofNCompleteColumn,
-                TextColumn,
-                TimeElapsedColumn,
-                TimeRemainingColumn,
-            )
-            from rich.progress import Progress as RichProgress
-
             self.bar = RichProgress(TextColumn(unit), BarColumn(), MofNCompleteColumn(),
                                     TextColumn("{task.fields[info]}"), TimeElapsedColumn(), TextColumn("ETA"),
                                     TimeRemainingColumn(), console=console)

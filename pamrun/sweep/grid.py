@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import copy
 import csv
-import hashlib
 import json
 import math
 import os
@@ -31,47 +30,28 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
+from rich.table import Table
+from scipy import stats
+from torch.utils.tensorboard import SummaryWriter
 
-from pamrun.config import JOB_METRICS
+from pamrun.config import JOB_METRICS, Config, to_object
+from pamrun.evaluation.evaluate import run_evaluation
 from pamrun.runs.directory import RunFiles, read_episodes, saved_config
+from pamrun.runs.files import console as make_console
 from pamrun.runs.files import read_json, write_json
 from pamrun.runs.machine import (
     usable_cores,  # importing it registers the resolvers of conf/config_sweep.yaml
 )
+from pamrun.sweep import figures
+from pamrun.training.recipe import train
 
 JOB_FILE = "job.json"
 FINISHED_TRAINING = ("max_frames", "max_episodes", "max_minutes", "target_avg_reward")
 METRIC_LABELS = {"final_avg_reward": "final avg reward", "best_distance_m": "best distance (m)",
                  "walk_pass_rate": "walk pass rate", "frames_to_first_save": "frames to 1st save"}
-
-
-def task_overrides(args: list[str]) -> list[str]:
-    """The config overrides of a command line (no flags, nothing of Hydra's own)."""
-    return [a for a in args if "=" in a and not a.startswith(("hydra.", "hydra/", "-", "+hydra", "~hydra"))]
-
-
-def swept_keys(args: list[str]) -> tuple[list[str], list[str]]:
-    """Keys of the overrides that sweep (``a=1,2``, ``range(...)``, ...) and of those that do not."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-
-    parsed = OverridesParser.create().parse_overrides(task_overrides(args))
-    swept = [o.key_or_group for o in parsed if o.is_sweep_override()]
-    return swept, [o.key_or_group for o in parsed if not o.is_sweep_override()]
-
-
-# How a sweep runs, not what it computes: left out of its folder's name, so changing them resumes it.
-RUNTIME_KEYS = ("sweep.jobs", "sweep.optuna.trials", "eval.workers", "train.threads")
-
-
-def sweep_dir_for(args: list[str], kind: str = "sweep") -> str:
-    """``multirun/<kind>-<swept keys>-<hash>``: the same command line always gets the same folder
-    (whatever the order of its overrides, the launcher or :data:`RUNTIME_KEYS`)."""
-    identity = sorted(a for a in task_overrides(args) if a.lstrip("+~").split("=", 1)[0] not in RUNTIME_KEYS)
-    digest = hashlib.sha1("\n".join(identity).encode()).hexdigest()[:8]
-    name = "-".join(sorted(swept_keys(args)[0]))[:60] or "single"
-    return f"multirun/{kind}-{name}-{digest}" if kind == "sweep" else f"multirun/{kind}-{digest}"
 
 
 # --------------------------------------------------------------------------- one job
@@ -84,8 +64,6 @@ def write_job(job_dir: Path, record: dict) -> None:
 def job(dcfg: DictConfig) -> dict:
     """The Hydra task of ``pamrun sweep``: train (or resume), evaluate, record; never raises
     for a bad combination or a crash, so one failure does not stop the sweep."""
-    from hydra.core.hydra_config import HydraConfig
-
     hc = HydraConfig.get()
     out = Path(hc.runtime.output_dir)
     record = read_json(out / JOB_FILE)
@@ -121,10 +99,6 @@ def job(dcfg: DictConfig) -> dict:
 
 def run_job(dcfg: DictConfig, out: Path, hc) -> dict:
     """Train (or resume), then evaluate the run's agents; the job's metrics."""
-    from pamrun.config import Config, to_object
-    from pamrun.evaluation.evaluate import run_evaluation
-    from pamrun.training.recipe import train
-
     cfg: Config = to_object(dcfg)  # raises ConfigError for an impossible combination
     share = job_cores(hc)
     dcfg = copy.deepcopy(dcfg)
@@ -157,8 +131,6 @@ def job_cores(hc) -> int:
 
 def job_metrics(job_dir: Path) -> dict[str, float | None]:
     """What the summary compares, from the files a job left (episodes.csv, eval/)."""
-    from pamrun.config import Config
-
     files = RunFiles(job_dir)
     rows = read_episodes(job_dir) if files.episodes.exists() else []
     cfg = saved_config(job_dir) if files.config.exists() else Config()
@@ -191,8 +163,6 @@ def hparams_of(overrides: list[str]) -> dict[str, Any]:
 
 def write_hparams(job_dir: Path, hparams: dict, metrics: dict) -> None:
     """The job's row of TensorBoard's HParams view (``tensorboard --logdir <sweep dir>``)."""
-    from torch.utils.tensorboard import SummaryWriter
-
     values = {f"sweep/{k}": float(v) for k, v in metrics.items() if k in JOB_METRICS and v is not None}
     with SummaryWriter(str(job_dir / "tensorboard")) as writer:
         writer.add_hparams(hparams or {"setting": "default"}, values, run_name=".")
@@ -217,8 +187,6 @@ def group_key(overrides: list[str], exclude: list[str]) -> tuple[str, ...]:
 
 def mean_ci(values: list[float], confidence: float = 0.95) -> tuple[float, float]:
     """Mean and half-width of its ``confidence`` interval (Student's t; NaN for fewer than 2)."""
-    from scipy import stats
-
     x = np.asarray([v for v in values if v is not None and math.isfinite(v)], dtype=float)
     if len(x) == 0:
         return math.nan, math.nan
@@ -231,8 +199,6 @@ def mean_ci(values: list[float], confidence: float = 0.95) -> tuple[float, float
 def summarize(sweep_dir: Path, exclude: list[str], metric: str = "final_avg_reward",
               direction: str = "maximize") -> dict:
     """Group the jobs, write summary.csv, summary.md and curves.png; the groups and the verdict."""
-    from pamrun.sweep import figures
-
     sweep_dir = Path(sweep_dir)
     jobs = collect_jobs(sweep_dir)
     if not jobs:
@@ -268,8 +234,6 @@ def summarize(sweep_dir: Path, exclude: list[str], metric: str = "final_avg_rewa
 
 def compare(rows: list[dict], metric: str, direction: str) -> str:
     """Which group is best on ``metric``, and whether the runner-up is distinguishable (Welch's t-test)."""
-    from scipy import stats
-
     ranked = [r for r in rows if math.isfinite(r[metric])]
     label = METRIC_LABELS[metric]
     if not ranked:
@@ -321,8 +285,6 @@ def write_summary_files(sweep_dir: Path, rows: list[dict], common: set, verdict:
 
 
 def summary_table(result: dict):
-    from rich.table import Table
-
     table = Table(title="Sweep summary (mean ± 95 % CI over seeds)",
                   caption=("common: " + " ".join(result["common"])) if result["common"] else None)
     for col in ("setting", "done", *(METRIC_LABELS[m] for m in JOB_METRICS)):
@@ -336,8 +298,6 @@ def summary_table(result: dict):
 
 
 def print_summary(result: dict, sweep_dir: Path) -> None:
-    from pamrun.runs.files import console as make_console
-
     console = make_console()
     console.print(summary_table(result))
     console.print(result["verdict"], soft_wrap=True)
@@ -362,8 +322,6 @@ class SummarizeAtEnd(Callback):
 
 def summarize_command(dcfg: DictConfig) -> None:
     """``pamrun sweep summarize dir=<sweep dir>``."""
-    from pamrun.config import to_object
-
     cfg = to_object(dcfg)
     if not cfg.dir:
         raise SystemExit("pamrun: pass dir=<sweep directory>")

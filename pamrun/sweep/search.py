@@ -19,9 +19,18 @@ import subprocess
 import sys
 from pathlib import Path
 
+import optuna
+from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
+from optuna.trial import TrialState
+from rich.table import Table
 
-from pamrun.sweep.grid import collect_jobs, task_overrides
+from pamrun.config import to_object
+from pamrun.runs.files import console as make_console
+from pamrun.runs.files import run_dir
+from pamrun.sweep import figures
+from pamrun.sweep.grid import collect_jobs
+from pamrun.sweep.overrides import task_overrides
 
 STALE = "interrupted"  # user attribute of a trial a previous run left unfinished
 
@@ -59,14 +68,6 @@ def run_trial(overrides: list[str], seeds: list[int], base: list[str], trial_dir
 
 def optuna_search(dcfg: DictConfig) -> None:
     """The Hydra task of ``pamrun sweep optuna``."""
-    import optuna
-    from hydra.core.hydra_config import HydraConfig
-    from optuna.trial import TrialState
-
-    from pamrun.config import to_object
-    from pamrun.runs.files import console as make_console
-    from pamrun.runs.files import run_dir
-
     console = make_console()
     cfg = to_object(dcfg)
     ocfg, metric = cfg.sweep.optuna, cfg.sweep.metric
@@ -111,11 +112,6 @@ def optuna_search(dcfg: DictConfig) -> None:
 
 def write_study(study, out: Path, metric: str, console) -> None:
     """trials.csv, best.json, optuna.png and a table of the trials."""
-    from optuna.trial import TrialState
-    from rich.table import Table
-
-    from pamrun.sweep import figures
-
     trials = [t for t in study.get_trials(deepcopy=False) if not t.user_attrs.get(STALE)]
     keys = sorted({k for t in trials for k in t.params})
     rows = [{"trial": t.number, "state": t.state.name, "value": t.value, "seeds_done": t.user_attrs.get("seeds_done"),

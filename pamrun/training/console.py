@@ -7,6 +7,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
+from rich.table import Table
 
 from pamrun.config import Config
 from pamrun.learning import checkpoints
@@ -17,8 +18,6 @@ STOPPED_EXIT = {"interrupted": 130, "terminated": 143}
 
 
 def header_table(cfg: Config, out: Path):
-    from rich.table import Table
-
     table = Table(title="pamrun train", show_header=False)
     a, t = cfg.algo, cfg.train
     for key, value in (
@@ -48,8 +47,6 @@ def header_table(cfg: Config, out: Path):
 
 
 def summary_table(run_info: dict, log, saved: list, out: Path):
-    from rich.table import Table
-
     table = Table(title=f"Training finished: {run_info['status']}", show_header=False)
     files = RunFiles(out)
     rewards = log.rewards
