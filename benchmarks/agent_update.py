@@ -21,10 +21,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import platform
 import statistics
-import sys
 import time
 from pathlib import Path
 
@@ -42,12 +42,21 @@ from train_throughput import (  # the sibling benchmark's batch and summary
 from pamrun.config import AlgoConfig
 from pamrun.learning import networks
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from test_agents import _hand_written_tanh_gaussian  # noqa: E402 (SAC's sample before TanhNormal)
-
 TD3 = {"name": "td3", "target_smoothing": 0.005, "critic_lr": 1e-3, "actor_update_every": 2}  # conf/algo/td3.yaml
 SAC = {"name": "sac", "target_smoothing": 0.005, "actor_lr": 3e-4, "critic_lr": 1e-3}  # conf/algo/sac.yaml
 RESULTS = Path(__file__).parent / "results" / "agent_update.jsonl"
+
+
+def _hand_written_tanh_gaussian(actor, obs):
+    """The baseline SAC sample, before TorchRL's TanhNormal: u = mean + std * noise, a = tanh(u),
+    log N(u; mean, std) - log(1 - tanh(u)^2) in softplus form, summed per action."""
+    h = actor.net[:4](obs)
+    mean = actor.net[4](h)
+    log_std = actor.log_std_head(h).clamp(*actor.LOG_STD_RANGE)
+    u = mean + log_std.exp() * torch.randn_like(mean)
+    log_prob = (-0.5 * ((u - mean) / log_std.exp()) ** 2 - log_std - 0.5 * math.log(2 * math.pi)
+                - 2.0 * (math.log(2.0) - u - torch.nn.functional.softplus(-2.0 * u)))
+    return torch.tanh(u), log_prob.sum(-1, keepdim=True)
 
 
 def _learner(algo: dict, baseline: bool, seed: int = 0) -> networks.Learner:
