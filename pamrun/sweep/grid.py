@@ -35,10 +35,8 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 from rich.table import Table
 from scipy import stats
-from torch.utils.tensorboard import SummaryWriter
 
 from pamrun.config import JOB_METRICS, Config, to_object
-from pamrun.evaluation.evaluate import run_evaluation
 from pamrun.runs.directory import RunFiles, read_episodes, saved_config
 from pamrun.runs.files import console as make_console
 from pamrun.runs.files import read_json, write_json
@@ -46,7 +44,6 @@ from pamrun.runs.machine import (
     usable_cores,  # importing it registers the resolvers of conf/config_sweep.yaml
 )
 from pamrun.sweep import figures
-from pamrun.training.recipe import train
 
 JOB_FILE = "job.json"
 FINISHED_TRAINING = ("max_frames", "max_episodes", "max_minutes", "target_avg_reward")
@@ -99,6 +96,10 @@ def job(dcfg: DictConfig) -> dict:
 
 def run_job(dcfg: DictConfig, out: Path, hc) -> dict:
     """Train (or resume), then evaluate the run's agents; the job's metrics."""
+    # heavy (torch, TorchRL: ~5 s): only a job trains; pamrun sweep summarize and the sweep's own process do not
+    from pamrun.evaluation.evaluate import run_evaluation
+    from pamrun.training.recipe import train
+
     cfg: Config = to_object(dcfg)  # raises ConfigError for an impossible combination
     share = job_cores(hc)
     dcfg = copy.deepcopy(dcfg)
@@ -163,6 +164,8 @@ def hparams_of(overrides: list[str]) -> dict[str, Any]:
 
 def write_hparams(job_dir: Path, hparams: dict, metrics: dict) -> None:
     """The job's row of TensorBoard's HParams view (``tensorboard --logdir <sweep dir>``)."""
+    from torch.utils.tensorboard import SummaryWriter  # heavy (torch, TensorBoard): only a job writes it
+
     values = {f"sweep/{k}": float(v) for k, v in metrics.items() if k in JOB_METRICS and v is not None}
     with SummaryWriter(str(job_dir / "tensorboard")) as writer:
         writer.add_hparams(hparams or {"setting": "default"}, values, run_name=".")
