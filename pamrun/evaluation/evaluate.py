@@ -527,7 +527,7 @@ def draw_figures(out: Path, ecfg, agents: list[Agent], kwargs: list[dict], resul
         figures.pressures(out / "episodes.jsonl", best.label, 0, out / "pressures.png")
         written += ["trajectories.png", "pressures.png"]
         spec = gait_spec(kwargs[agents.index(best)])
-        figures.gait(figures.read_episodes(out / "episodes.jsonl", {best.label}), spec.joint_limits_rad,
+        figures.gait(figures.read_episodes_jsonl(out / "episodes.jsonl", {best.label}), spec.joint_limits_rad,
                    spec.contact_threshold_n, out / "gait.png")
         written.append("gait.png")
     runs = list(dict.fromkeys(a.run_dir for a in agents if a.run_dir and RunFiles(a.run_dir).episodes.exists()))
