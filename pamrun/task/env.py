@@ -186,8 +186,8 @@ class PamWalkerEnv(gym.Env):
         self._joint_angles = operator.itemgetter(*self.qpos_addresses)  # from qpos as a list
         self._joint_velocities = operator.itemgetter(*self.qvel_idx.tolist())
         self._torso_id = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body_mod.TORSO)
-        self._sole_ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"{side}_contact_{end}_{edge}")
-                          for side in body_mod.SIDES for end in ("front", "back") for edge in ("left", "right")]
+        self._sole_ids = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"{side}_contact_{end}_{edge}")
+                                   for side in body_mod.SIDES for end in ("front", "back") for edge in ("left", "right")])
         self.sole_radius_m = float(m.geom_size[self._sole_ids, 0].max())  # kgait's clearance: sphere bottom
         sensor = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, s) for s in body_mod.FOOT_SENSORS]
         self._foot_sensor_adr = np.array(m.sensor_adr[sensor])
@@ -243,7 +243,7 @@ class PamWalkerEnv(gym.Env):
         ep = self.episode = self._new_episode(speed, float(self.np_random.uniform()) if self.gait_clock else 0.0)
         ep.x0 = float(d.qpos[0])
         feet, state = self.foot_forces_n(), self._state()
-        ep.soles, ep.contact = self._feet(feet)
+        ep.soles, ep.contact = self._feet(feet.tolist())
         info = self._info(False, feet, self._fell(state), state)
         if self.air_meter is not None:
             ep.gas, info["air_nl"] = self._gas(), np.float64(0.0)
@@ -261,9 +261,9 @@ class PamWalkerEnv(gym.Env):
         state = self._state()
         physics_error = sum(_unstable_counts(self.data.warning.number.tolist())) > 0 or not _all_finite(*state[:2])
         feet = self.foot_forces_n()
-        soles, contact = self._feet(feet)
-        t = Transition(self, ep, state[2], state[0], action, previous, ep.soles, soles, ep.contact, contact,
-                       feet.tolist())
+        forces = feet.tolist()
+        soles, contact = self._feet(forces)
+        t = Transition(self, ep, state[2], state[0], action, previous, ep.soles, soles, ep.contact, contact, forces)
         ep.soles, ep.contact = soles, contact
         if self.air_meter is not None:
             gas = self._gas()
@@ -331,10 +331,10 @@ class PamWalkerEnv(gym.Env):
             forces += self.data.sensordata[self._toe_sensor_adr]
         return forces
 
-    def _feet(self, foot_force_n: np.ndarray) -> tuple[np.ndarray, list[bool]]:
-        """The feet's contact points (2, 4, 3) now, and which are on the ground."""
+    def _feet(self, foot_force_n: list[float]) -> tuple[np.ndarray, list[bool]]:
+        """The feet's contact points (2, 4, 3) now, and which are on the ground (under these forces [N])."""
         soles = self.data.geom_xpos[self._sole_ids].reshape(2, -1, 3)  # fancy indexing: a copy
-        return soles, [f > self.contact_n for f in foot_force_n.tolist()]
+        return soles, [f > self.contact_n for f in foot_force_n]
 
     def _gas(self) -> np.ndarray:
         """The muscles' gas P V [kPa l] now (the air meter's)."""

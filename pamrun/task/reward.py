@@ -163,13 +163,15 @@ class Reward:
             raise ValueError(f"unknown reward features {unknown}; known: {', '.join(REWARD_KEYS)}")
         self.weights = {k: float(getattr(cfg, k)) for k in REWARD_KEYS}
         self.computed = tuple(k for k in REWARD_KEYS if self.weights[k] or k in features)
+        self._terms = [(k, TERMS[k]) for k in self.computed]
+        self._zeros = dict.fromkeys(REWARD_KEYS, 0.0)
 
     def __call__(self, t: Transition | None) -> tuple[float, dict[str, float], dict[str, float]]:
         """The reward, its weighted terms and its features, both by key (``t`` None: a step whose
         physics blew up, every feature 0)."""
-        features = dict.fromkeys(REWARD_KEYS, 0.0)
+        features = self._zeros.copy()
         if t is not None:
-            for key in self.computed:
-                features[key] = TERMS[key](t)
+            for key, feature in self._terms:
+                features[key] = feature(t)
         terms = {k: w * features[k] for k, w in self.weights.items()}
         return float(sum(terms.values())), terms, features
