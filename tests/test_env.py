@@ -82,24 +82,35 @@ def test_standing_feet_carry_the_weight(env):
 
 
 def test_reward_is_its_weights_times_unweighted_terms(env):
-    """info holds each term unweighted (``reward_unweighted``, REWARD_KEYS order) and weighted
-    (``reward_terms``, by weight name); the features are the state's quantities (Table 9.3's
-    Vx, y^2, (z - z0)^2, sum(a^2), Ts / Tf) and the reward is the weights' sum over them."""
-    from pamrun.task.env import REWARD_KEYS
+    """info holds each term unweighted (``reward_unweighted``) and weighted (``reward_terms``),
+    both by weight key; the features are the state's quantities (Table 9.3's Vx, y^2,
+    (z - z0)^2, sum(a^2), Ts / Tf) and the reward is the weights' sum over them, in
+    RewardConfig's order; a term whose weight is 0 is not computed (its feature is 0)."""
+    from pamrun.task.reward import REWARD_KEYS
 
     _, info0 = env.reset(seed=1)
-    assert list(info0["reward_unweighted"]) == [0.0] * len(REWARD_KEYS)  # reset: the same keys, zeros
+    assert info0["reward_unweighted"] == dict.fromkeys(REWARD_KEYS, 0.0)  # reset: the same keys, zeros
     action = np.linspace(-1, 1, 10).astype(np.float32)
     _, reward, _, _, info = env.step(action)
     u = env.unwrapped
-    f = dict(zip(REWARD_KEYS, info["reward_unweighted"]))
+    f = info["reward_unweighted"]
+    assert list(f) == list(info["reward_terms"]) == list(REWARD_KEYS)
     assert f["kvx"] == u.data.qvel[0] and f["ky"] == -u.data.qpos[1] ** 2
     assert f["kz"] == pytest.approx(-(u.data.qpos[2] - u.z0) ** 2, abs=1e-15)
     assert f["kv"] == pytest.approx(-np.sum(action.astype(float) ** 2)) and f["kt"] == pytest.approx(0.025 / 10)
-    assert list(u.reward_weights) == [getattr(RewardConfig(), k) for k in REWARD_KEYS]
-    assert reward == pytest.approx(float(np.dot(u.reward_weights, info["reward_unweighted"])), rel=1e-12)
-    assert info["reward_terms"] == {k: w * f[k] for k, w in zip(REWARD_KEYS, u.reward_weights)}
+    assert u.reward_weights == {k: getattr(RewardConfig(), k) for k in REWARD_KEYS}
+    assert reward == sum(u.reward_weights[k] * f[k] for k in REWARD_KEYS)
+    assert info["reward_terms"] == {k: w * f[k] for k, w in u.reward_weights.items()}
     assert info["reward_terms"]["kt"] == pytest.approx(0.0625)  # Table 9.3: kt Ts / Tf = 25 x 0.025 / 10
+    assert f["kda"] == 0.0 and "air_nl" not in info  # weight 0: neither computed nor metered
+    asked = PamWalkerEnv(features=["kda", "kair"])
+    asked.reset(seed=1)
+    asked.step(np.zeros(10))
+    _, again, _, _, info = asked.step(action)
+    assert info["reward_unweighted"]["kda"] == pytest.approx(-np.sum(action.astype(float) ** 2))
+    assert info["reward_unweighted"]["kair"] == -info["air_nl"] < 0 and info["reward_terms"]["kda"] == 0.0
+    with pytest.raises(ValueError, match="kspeeed"):
+        PamWalkerEnv(features=["kspeeed"])
 
 
 def test_command_change_and_fall_terms():

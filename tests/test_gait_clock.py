@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from pamrun.config import ConfigError, to_object
-from pamrun.task.env import REWARD_KEYS, PamWalkerEnv, foot_miss, swing_weights
+from pamrun.task.env import PamWalkerEnv, foot_miss, swing_weights
 from pamrun.task.symmetry import action_map, mirror_state, observation_map
 from tests.conftest import compose_config
 from tests.test_train import TINY, train_here
@@ -37,7 +37,7 @@ def test_the_policy_sees_the_clock_and_each_episode_draws_its_phase():
     """sin, cos of the phase end the observation; the phase turns by Ts / T a step from a start
     drawn per seed (reproducible); the start pose is the same as without a clock."""
     env = PamWalkerEnv(env={**CLOCK, "reset_noise_rad": 0.02})
-    plain = PamWalkerEnv(env={"reset_noise_rad": 0.02})
+    plain = PamWalkerEnv(env={"reset_noise_rad": 0.02}, features=["kgait"])
     assert env.observation_structure["gait_clock"] == slice(43, 45)
     assert env.observation_space.shape == (45,)
     starts = []
@@ -56,7 +56,7 @@ def test_the_policy_sees_the_clock_and_each_episode_draws_its_phase():
         phase = (starts[2] + k * 0.025 / 0.8) % 1
         assert obs[43:] == pytest.approx([math.sin(2 * math.pi * phase), math.cos(2 * math.pi * phase)], abs=1e-6)
     *_, info = plain.step(np.zeros(10))
-    assert dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"] == 0.0  # no clock, nothing to follow
+    assert info["reward_unweighted"]["kgait"] == 0.0  # no clock, nothing to follow
     env.close()
     plain.close()
 
@@ -71,7 +71,7 @@ def test_kgait_charges_force_on_a_swinging_foot_and_nothing_when_both_should_sta
     for _ in range(64):  # two periods
         _, _, fell, _, info = env.step(np.zeros(10))
         assert not fell
-        feature = dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"]
+        feature = info["reward_unweighted"]["kgait"]
         assert info["reward_terms"]["kgait"] == pytest.approx(2.0 * feature)
         swing = swing_weights(env.gait_phase(), 0.4)
         if max(swing) < 0.01:
@@ -90,13 +90,13 @@ def test_kgait_charges_force_on_a_swinging_foot_and_nothing_when_both_should_sta
 def test_kgait_charges_a_foot_that_moves_while_its_clock_stands_it():
     """Move the whole robot, feet and all, forward in a step where the clock stands both feet:
     kgait's feature falls below 1 by the feet's mean speed (each capped at 1 m/s)."""
-    env = PamWalkerEnv(env=CLOCK)
+    env = PamWalkerEnv(env=CLOCK, features=["kgait"])
     env.reset(seed=0)
     while max(swing_weights(env.gait_phase() + 0.025 / 0.8, 0.4)) > 0.01:  # to a step in double support
         env.step(np.zeros(10))
     env.data.qvel[0] = 0.4  # the torso (and with it the feet) moving forward
     _, _, _, _, info = env.step(np.zeros(10))
-    feature = dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"]
+    feature = info["reward_unweighted"]["kgait"]
     assert 0.0 <= feature < 0.95
     env.close()
 
@@ -108,7 +108,7 @@ def test_the_mirror_image_runs_half_a_period_on():
     a, b = (PamWalkerEnv(env={**CLOCK, "reset_noise_rad": 0.05}, reward={"kgait": 1.0}) for _ in range(2))
     a.reset(seed=3)
     b.reset(seed=3)
-    b._phase0 = (a._phase0 + 0.5) % 1
+    b.episode.phase0 = (a.episode.phase0 + 0.5) % 1
     a.data.qvel[1] = 0.2
     mujoco.mj_forward(a.model, a.data)
     b.data.qpos[:], b.data.qvel[:] = mirror_state(a.data.qpos, a.data.qvel, a.qpos_idx, a.qvel_idx)
@@ -172,7 +172,7 @@ def test_kgait_charges_a_foot_off_the_ground_while_its_clock_stands_it():
     """Hold the robot still a few centimetres above the floor in double support: both feet are
     still but carry nothing, so each misses its stance fully and kgait's feature is ~0 (a flight
     phase costs what a run's does)."""
-    env = PamWalkerEnv(env=CLOCK)
+    env = PamWalkerEnv(env=CLOCK, features=["kgait"])
     env.reset(seed=0)
     while max(swing_weights(env.gait_phase() + 0.025 / 0.8, 0.4)) > 0.01:  # to a step in double support
         env.step(np.zeros(10))
@@ -181,7 +181,7 @@ def test_kgait_charges_a_foot_off_the_ground_while_its_clock_stands_it():
     mujoco.mj_forward(env.model, env.data)
     _, _, _, _, info = env.step(np.zeros(10))
     assert max(info["foot_force_n"]) < 1.0  # in the air
-    assert dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"] < 0.05
+    assert info["reward_unweighted"]["kgait"] < 0.05
     env.close()
 
 
@@ -189,7 +189,7 @@ def held_in_right_swing(env_overrides: dict, lift_m: float, knee_deg: float | No
     """Step a clocked env (CLOCK plus env_overrides) to a step that swings the right foot fully,
     raise the robot lift_m, set its right knee to knee_deg (if given), still, and step once with
     zero action: kgait's feature, the step's info, and the right knee's angle after it [deg]."""
-    env = PamWalkerEnv(env={**CLOCK, **env_overrides})
+    env = PamWalkerEnv(env={**CLOCK, **env_overrides}, features=["kgait"])
     env.reset(seed=0)
     while swing_weights(env.gait_phase() + 0.025 / 0.8, 0.4)[0] < 0.999:  # to a step swinging the right foot
         env.step(np.zeros(10))
@@ -202,7 +202,7 @@ def held_in_right_swing(env_overrides: dict, lift_m: float, knee_deg: float | No
     _, _, _, _, info = env.step(np.zeros(10))
     bent = math.degrees(env.data.qpos[knee])  # after the step, as kgait reads it
     env.close()
-    return dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"], info, bent
+    return info["reward_unweighted"]["kgait"], info, bent
 
 
 def test_kgait_charges_a_swinging_foot_that_does_not_lift_to_the_clearance():
@@ -271,16 +271,16 @@ def test_kgait_charges_bent_knees_on_the_ground_only_where_the_clock_stands_them
     bend misses fully) pays less on each step with knees bent past it, by at most the stances'
     half of the feature."""
     def crouch(stance_knee_deg: float) -> tuple[list[float], list[float], list[float]]:
-        env = PamWalkerEnv(env={**CLOCK, "stance_knee_deg": stance_knee_deg})
+        env = PamWalkerEnv(env={**CLOCK, "stance_knee_deg": stance_knee_deg}, features=["kgait"])
         env.reset(seed=0)
         action = np.zeros(10)
         action[[2, 7]] = 0.5  # right_knee, left_knee
         kgait, stance, bent = [], [], []
         for _ in range(6):
             _, _, _, _, info = env.step(action)
-            kgait.append(dict(zip(REWARD_KEYS, info["reward_unweighted"]))["kgait"])
+            kgait.append(info["reward_unweighted"]["kgait"])
             stance.append(sum(1.0 - s for s in swing_weights(env.gait_phase(), 0.4)))
-            bent.append(min(math.degrees(env.data.qpos[a]) for a in env._knee_adr))
+            bent.append(min(math.degrees(env.data.qpos[a]) for a in env.knee_addresses))
         env.close()
         return kgait, stance, bent
 

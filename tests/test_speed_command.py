@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from pamrun.config import ConfigError, to_object
-from pamrun.task.env import REWARD_KEYS, PamWalkerEnv
+from pamrun.task.env import PamWalkerEnv
 from tests.conftest import compose_config
 from tests.test_train import TINY, train_here
 
@@ -21,7 +21,8 @@ def test_the_env_draws_and_shows_the_commanded_speed():
     """v* is drawn in the range per reset from the env's seed (the same seed: the same v* and the
     same start pose as without a command), is the observation's last value and info's, and is
     what kspeed's feature tracks."""
-    told = PamWalkerEnv(env={"speed_command": True, "speed_range_m_s": RANGE, "reset_noise_rad": 0.02})
+    told = PamWalkerEnv(env={"speed_command": True, "speed_range_m_s": RANGE, "reset_noise_rad": 0.02},
+                        features=["kspeed"])
     plain = PamWalkerEnv(env={"reset_noise_rad": 0.02})
     assert told.observation_space.shape == (plain.observation_space.shape[0] + 1,)
     assert told.observation_structure["speed_command"] == slice(43, 44)
@@ -36,7 +37,7 @@ def test_the_env_draws_and_shows_the_commanded_speed():
     assert told.reset(seed=3)[1]["target_speed_m_s"] == speeds[3]
     obs, *_, info = told.step(np.zeros(10))
     assert obs[-1] == np.float32(speeds[3])  # held for the episode
-    f = dict(zip(REWARD_KEYS, info["reward_unweighted"]))
+    f = info["reward_unweighted"]
     vx = told.data.qvel[0]
     assert f["kspeed"] == pytest.approx(math.exp(-(((vx - speeds[3]) / told.env_cfg.speed_sigma_m_s) ** 2)))
     from pamrun.task.symmetry import observation_map

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, is_dataclass
 from typing import Any
 
 from hydra.core.config_store import ConfigStore
@@ -57,7 +57,7 @@ __all__ = ["CONF_DIR", "SPRING_FILE", "JOB_METRICS", "RANK_METRICS", "FORCE_LAW_
            "check_muscle_stretch", "check_toe_stiffness",
            "BodyConfig", "RewardConfig", "EnvConfig", "AlgoConfig", "TrainConfig", "EvalConfig",
            "OptunaConfig", "Perturbation", "flatten", "PERTURBABLE_SECTIONS", "SweepConfig", "StepExperiment", "PairConfig", "register_configs", "validate", "to_object",
-           "preset", "upgrade_saved_config"]
+           "preset", "upgrade_saved_config", "as_config"]
 
 
 # --------------------------------------------------------------------------- root
@@ -198,3 +198,19 @@ def to_object(cfg: DictConfig) -> Any:
     """Validated dataclass instance of a composed config (or of one of its sections)."""
     validate(cfg)
     return OmegaConf.to_object(cfg)
+
+
+def as_config(value: Any, cls: type) -> Any:
+    """A dataclass of type ``cls`` from None, a dataclass, or a (nested, partial) dict.
+
+    Dicts are merged over the defaults through OmegaConf, so unknown keys and wrong types
+    fail with the key named, then values are validated (:class:`ConfigError`).
+    """
+    if value is None:
+        return cls()
+    if isinstance(value, cls):
+        return value
+    if is_dataclass(value):
+        value = asdict(value)
+    merged = OmegaConf.merge(OmegaConf.structured(cls), OmegaConf.create(dict(value)))
+    return to_object(merged)

@@ -70,11 +70,14 @@ STEP_KEYS = ("x_m", "y_m", "z_m", "joint_angle_rad", "joint_velocity_rad_s", "jo
 
 
 def gait_spec(kwargs: dict) -> GaitSpec:
-    """The gait metrics' view of the robot that ``kwargs`` (PamWalkerEnv's) builds."""
-    from pamrun.task.env import PamWalkerEnv
+    """The gait metrics' view of the robot that ``kwargs`` (PamWalkerEnv's) builds: its mass
+    from the compiled body, no env."""
+    from pamrun.config import as_config  # local: module imports left to the change of the rest of this file
+    from pamrun.physics.body import build_model
 
-    env = PamWalkerEnv(**kwargs)
-    return GaitSpec.from_configs(env.body_cfg, env.muscle_cfg, env.mass_kg, env.env_cfg.control_dt_s)
+    body, muscle, env = (as_config(kwargs.get(k), SECTION_TYPES[k]) for k in ("body", "muscle", "env"))
+    mass_kg = float(build_model(body, timestep_s=env.physics_dt_s).body_subtreemass[0])
+    return GaitSpec.from_configs(body, muscle, mass_kg, env.control_dt_s)
 
 
 def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = None,

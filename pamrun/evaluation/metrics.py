@@ -66,9 +66,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pamrun.physics.body import GRAVITY, JOINTS, LEG_JOINTS, SIDES
+from pamrun.physics.actuation import joint_limits_rad, muscle_counts
+from pamrun.physics.body import GRAVITY, JOINTS
 from pamrun.physics.muscle import MUSCLE_INNER_DIAMETER_M, air_nl
-from pamrun.task.measures import CONTACT_WEIGHT_SHARE, STOP_MARGIN_DEG, step_length
+from pamrun.task.measures import (
+    CONTACT_WEIGHT_SHARE,
+    KNEES,
+    STOP_MARGIN_DEG,
+    at_stops,
+    ground_point_shift_m,
+    step_length,
+    stop_bounds,
+)
 
 RIGHT, LEFT = 0, 1  # foot columns of foot_force_n / foot_xyz_m
 
@@ -125,13 +134,11 @@ class GaitSpec:
     @classmethod
     def from_configs(cls, body_cfg, muscle_cfg, mass_kg: float, dt_s: float, **overrides) -> GaitSpec:
         """The spec of a robot built from its BodyConfig and MuscleConfig (mass from the model)."""
-        from pamrun.physics.actuation import joint_limits_rad
-
         return cls(
             dt_s=dt_s,
             joint_limits_rad=joint_limits_rad(body_cfg),
             mass_kg=mass_kg,
-            muscles_per_side=[getattr(muscle_cfg.count, joint) for _ in SIDES for joint in LEG_JOINTS],
+            muscles_per_side=muscle_counts(muscle_cfg),
             nominal_length_m=muscle_cfg.nominal_length_m,
             inner_diameter_m=MUSCLE_INNER_DIAMETER_M[muscle_cfg.size],
             **overrides,
@@ -206,8 +213,7 @@ def _mean(values) -> float:
 def stop_shares(joint_angle_rad, spec: GaitSpec) -> np.ndarray:
     """(10,) share of the rows each joint lies within ``stop_margin_rad`` of a limit."""
     q = np.asarray(joint_angle_rad, float).reshape(-1, len(JOINTS))
-    lower, upper = spec.joint_limits_rad[:, 0], spec.joint_limits_rad[:, 1]
-    at_stop = (q <= lower + spec.stop_margin_rad) | (q >= upper - spec.stop_margin_rad)
+    at_stop = at_stops(q, stop_bounds(spec.joint_limits_rad, spec.stop_margin_rad))
     return at_stop.mean(axis=0) if len(q) else np.full(len(JOINTS), math.nan)
 
 
@@ -215,9 +221,7 @@ def knee_swing_stop_share(joint_angle_rad, contact: np.ndarray, spec: GaitSpec) 
     """Share of the rows with a foot off the ground in which that leg's knee is at a stop, pooled
     over both legs (a knee in stance rests on its stop by design, its lock; in swing it bends)."""
     q = np.asarray(joint_angle_rad, float).reshape(-1, len(JOINTS))
-    knees = [JOINTS.index(f"{side}_knee") for side in SIDES]  # in foot-column order (RIGHT, LEFT)
-    lower, upper = spec.joint_limits_rad[knees, 0], spec.joint_limits_rad[knees, 1]
-    at_stop = (q[:, knees] <= lower + spec.stop_margin_rad) | (q[:, knees] >= upper - spec.stop_margin_rad)
+    at_stop = at_stops(q, stop_bounds(spec.joint_limits_rad, spec.stop_margin_rad))[:, KNEES]  # foot order
     swing = ~contact[: len(q)]
     return float(at_stop[swing].mean()) if swing.any() else math.nan
 
@@ -241,11 +245,8 @@ def foot_slip_m_s(steps: dict, contact: np.ndarray) -> float:
     """Mean horizontal speed [m/s] of the feet between consecutive rows in contact at both ends."""
     t = np.asarray(steps["t_s"], float)
     points = sole_points(steps)  # (n, 2, k, 3)
-    lowest = np.argmin(points[:-1, :, :, 2], axis=2)[..., None, None]  # per row pair and foot
-    before = np.take_along_axis(points[:-1], lowest, axis=2)[:, :, 0, :2]
-    after = np.take_along_axis(points[1:], lowest, axis=2)[:, :, 0, :2]
     both = contact[1:] & contact[:-1]  # (n - 1, 2)
-    speed = np.linalg.norm(after - before, axis=-1) / np.diff(t)[:, None]
+    speed = np.linalg.norm(ground_point_shift_m(points[:-1], points[1:]), axis=-1) / np.diff(t)[:, None]
     return float(speed[both].mean()) if both.any() else math.nan
 
 

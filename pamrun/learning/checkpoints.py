@@ -355,16 +355,35 @@ def load_last(ckpt_dir: Path, learner, buffer) -> dict:
     return counters
 
 
-def check_reward_terms(buffer, folder: Path) -> None:
-    """The replay buffer's transitions carry one unweighted feature per reward term of this
-    pamrun (``pamrun.task.env.REWARD_KEYS``): a run saved before a term was added fails here, naming
-    the buffer, rather than mid-training."""
-    from pamrun.learning.curriculum import FEATURES
-    from pamrun.task.env import REWARD_KEYS
+# The reward terms' order in the replay buffers pamrun saved before it stored them by name (one
+# (n, 13) array of features under ("next", "reward_unweighted")): RewardConfig's field order then.
+ARRAY_TERMS = ("kvx", "ky", "kz", "kv", "kt", "kda", "kfall", "kstop", "kspeed", "kslip", "kair", "kstep", "kgait")
 
-    stored = buffer.storage[0].get(("next", FEATURES), None) if len(buffer) else None
-    if stored is not None and stored.shape[-1] != len(REWARD_KEYS):
-        raise CheckpointError(folder, f"replay buffer stores {stored.shape[-1]} reward terms, this pamrun has "
+
+def check_reward_terms(buffer, folder: Path) -> None:
+    """The replay buffer's transitions carry every reward term of this pamrun by weight key
+    (``pamrun.task.reward.REWARD_KEYS``, under ``("next", FEATURES)``). A buffer saved with the
+    terms as one array (:data:`ARRAY_TERMS` order) is converted in place; one saved before a term
+    was added fails here, naming the buffer, rather than mid-training."""
+    import torch  # torch and TorchRL: heavy, imported where used (as everywhere in this module)
+    from tensordict import TensorDict
+
+    from pamrun.learning.curriculum import FEATURES
+    from pamrun.task.reward import REWARD_KEYS
+
+    storage = buffer.storage._storage if len(buffer) else None
+    stored = None if storage is None else storage.get(("next", FEATURES), None)
+    if isinstance(stored, torch.Tensor):
+        if stored.shape[-1] != len(ARRAY_TERMS):
+            raise CheckpointError(folder, f"replay buffer stores {stored.shape[-1]} reward terms, this pamrun has "
+                                          f"{len(REWARD_KEYS)} ({', '.join(REWARD_KEYS)}): the run was saved by an "
+                                          "earlier pamrun and cannot be resumed; start a new run")
+        named = {k: stored[..., i].contiguous() for i, k in enumerate(ARRAY_TERMS)}
+        storage.del_(("next", FEATURES))
+        storage.set(("next", FEATURES), stored := TensorDict(named, batch_size=stored.shape[:-1]))
+    missing = [] if stored is None else [k for k in REWARD_KEYS if k not in stored]
+    if missing:
+        raise CheckpointError(folder, f"replay buffer stores no {', '.join(missing)} reward term, this pamrun has "
                                       f"{len(REWARD_KEYS)} ({', '.join(REWARD_KEYS)}): the run was saved by an "
                                       "earlier pamrun and cannot be resumed; start a new run")
 

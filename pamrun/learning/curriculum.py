@@ -1,10 +1,13 @@
 """Curricula over the reward: the learner's weights change during training, the env's do not.
 
-The env returns every reward term unweighted (``info["reward_unweighted"]``, ``REWARD_KEYS``
-order: :mod:`pamrun.task.env`), and training stores those features in its replay buffer. A
-:class:`Reweight` transform on the buffer gives every sample, old or new, the reward of other
-weights: r' = r + sum_k (w'_k - w_k) f_k. Transitions whose physics blew up have all features
-0, so they keep their reward (0). The env, its logs and ``pamrun eval`` keep the config's weights.
+The env returns its reward's unweighted terms by weight key (``info["reward_unweighted"]``:
+:mod:`pamrun.task.reward`), and training stores them in its replay buffer under
+``("next", "reward_unweighted", <key>)`` (:class:`FeatureReader`). A :class:`Reweight` transform on
+the buffer gives every sample, old or new, the reward of other weights:
+r' = r + sum_k (w'_k - w_k) f_k, matched by key. The env computes only the terms it weighs and
+those a curriculum may turn on (:func:`reweighted_terms`, its ``features``). Transitions whose
+physics blew up have all features 0, so they keep their reward (0). The env, its logs and
+``pamrun eval`` keep the config's weights.
 
 :class:`WalkCurriculum` (``train.walk_kvx``, ``train.walk_weights``): stand first, then walk.
 Until the "stand, learned" milestone (:func:`pamrun.task.criteria.stands_learned`) the learner
@@ -16,35 +19,66 @@ function of the run's evaluations (``evals.csv``), so a resumed run takes it up 
 from __future__ import annotations
 
 import torch
+from tensordict import TensorDict
+from torchrl.data import Composite, Unbounded
+from torchrl.envs.gym_like import BaseInfoDictReader
 from torchrl.envs.transforms import Transform
 
 from pamrun.config import Config
 from pamrun.task.criteria import stands_learned
-from pamrun.task.env import REWARD_KEYS
+from pamrun.task.reward import REWARD_KEYS
 
-FEATURES = "reward_unweighted"  # the replay buffer's key (under "next") of the unweighted features
+FEATURES = "reward_unweighted"  # the replay buffer's key (under "next") of the unweighted terms, by weight key
+
+
+def reweighted_terms(cfg: Config) -> tuple[str, ...]:
+    """The terms the walking stage may weigh (``train.walk_weights``, ``train.walk_kvx``): the
+    env computes them even at weight 0 (its ``features``)."""
+    return tuple(k for k in REWARD_KEYS if k in cfg.train.walk_weights or (k == "kvx" and cfg.train.walk_kvx is not None))
+
+
+class FeatureReader(BaseInfoDictReader):
+    """TorchRL's reader of the env's ``info["reward_unweighted"]`` (a dict by weight key) into a
+    nested TensorDict, ``(FEATURES, key)``, float64 (``GymWrapper.set_info_dict_reader``)."""
+
+    def __init__(self):
+        terms = Composite({k: Unbounded((), dtype=torch.float64) for k in REWARD_KEYS}, shape=())
+        self._info_spec = Composite({FEATURES: terms}, shape=())
+
+    def __call__(self, info_dict, tensordict):
+        features = info_dict[FEATURES]
+        values = torch.tensor([features[k] for k in REWARD_KEYS], dtype=torch.float64).unbind(0)
+        tensordict.set(FEATURES, TensorDict(dict(zip(REWARD_KEYS, values)), batch_size=()))
+        return tensordict
+
+    def reset(self) -> None:
+        pass
+
+    @property
+    def info_spec(self) -> Composite:
+        return self._info_spec
 
 
 class Reweight(Transform):
     """A replay-buffer transform (``buffer.append_transform``): the sampled ``("next", "reward")``
-    re-weighted to ``weights`` from the env's ``base`` weights (both in ``REWARD_KEYS`` order).
-    With equal weights it leaves samples untouched."""
+    re-weighted to ``weights`` from the env's ``base`` weights (both by key). With equal weights
+    it leaves samples untouched."""
 
-    def __init__(self, base: list[float]):
+    def __init__(self, base: dict[str, float]):
         super().__init__()
-        self.base = torch.tensor(base, dtype=torch.float64)
-        self.delta = torch.zeros_like(self.base)
+        self.base = {k: float(base[k]) for k in REWARD_KEYS}
+        self.delta = dict.fromkeys(REWARD_KEYS, 0.0)
 
-    def set_weights(self, weights: list[float]) -> None:
-        self.delta = torch.tensor(weights, dtype=torch.float64) - self.base
+    def set_weights(self, weights: dict[str, float]) -> None:
+        self.delta = {k: float(weights[k]) - w for k, w in self.base.items()}
 
     def forward(self, tensordict):
-        changed = self.delta.nonzero().flatten().tolist()
+        changed = [k for k, d in self.delta.items() if d != 0.0]
         if changed:
             nxt = tensordict["next"]
             reward, features = nxt["reward"], nxt[FEATURES]
-            for k in changed:  # one term at a time: the reward stays in its own dtype
-                reward += float(self.delta[k]) * features[..., k:k + 1].to(reward.dtype)
+            for k in changed:  # one term at a time, in REWARD_KEYS order: the reward stays in its own dtype
+                reward += self.delta[k] * features[k].unsqueeze(-1).to(reward.dtype)
         return tensordict
 
 
@@ -56,7 +90,7 @@ class WalkCurriculum:
         self.weights = {**{k: getattr(cfg.reward, k) for k in REWARD_KEYS}, **cfg.train.walk_weights,
                         **({"kvx": self.kvx} if self.kvx is not None else {})}  # the walking stage's
         self.since: int | None = None  # frames of the evaluation that started the walking stage
-        self.transform = Reweight([getattr(cfg.reward, k) for k in REWARD_KEYS])
+        self.transform = Reweight({k: getattr(cfg.reward, k) for k in REWARD_KEYS})
 
     def replay(self, rows: list[dict]) -> None:
         """Take up the stage a resumed run was in, from its evals.csv rows."""
@@ -68,7 +102,7 @@ class WalkCurriculum:
         if not self.active or self.walking or not stands_learned(stand_rate, frames, self.cfg):
             return False
         self.walking, self.since = True, frames
-        self.transform.set_weights([self.weights[k] for k in REWARD_KEYS])
+        self.transform.set_weights(self.weights)
         return True
 
     @property

@@ -1,13 +1,48 @@
-"""Per-step measures of the gait that the reward and the evaluation's gait metrics share:
-when a foot is on the ground, when a joint is at its stop, and a step's length."""
+"""Per-step measures of the gait that the reward and the evaluation's gait metrics share: when a
+foot is on the ground, when a joint is at its stop, how far a foot's ground point slides, and a
+step's length. Each works on one step's values or, where it says so, on rows of them."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from pamrun.physics.body import JOINTS, SIDES
+
 STOP_MARGIN_DEG = 2.0  # a joint 'at its stop': within this of a limit (reward.kstop and the gait metrics)
 # A foot carrying less than this share of the body weight is taken as off the ground.
 CONTACT_WEIGHT_SHARE = 0.05
+KNEES = [JOINTS.index(f"{side}_knee") for side in SIDES]  # each leg's knee column, in foot order (right, left)
+
+
+def stop_bounds(limits_rad, margin_rad: float) -> np.ndarray:
+    """(10, 2): the angles below and above which each joint is at a stop, its limits moved
+    ``margin_rad`` inward."""
+    return np.asarray(limits_rad, float) + [margin_rad, -margin_rad]
+
+
+def at_stops(q, bounds: np.ndarray) -> np.ndarray:
+    """Which joints are at a stop: q (..., 10) [rad] on or past ``bounds`` (:func:`stop_bounds`)."""
+    q = np.asarray(q, float)
+    return (q <= bounds[:, 0]) | (q >= bounds[:, 1])
+
+
+def stop_share(q, bounds: np.ndarray, contact) -> float:
+    """Share of the hip and ankle joints, and of the knees of legs whose foot is off the ground,
+    at a stop (``reward.kstop``'s; a knee in stance rests on its stop by design, its lock)."""
+    at = at_stops(q, bounds).tolist()
+    counted = [j for j in range(len(at)) if j not in KNEES] + [k for k, down in zip(KNEES, contact) if not down]
+    return sum(at[j] for j in counted) / len(counted)
+
+
+def ground_point_shift_m(before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    """(..., 2, 2): how far [m] each foot's ground point moved in x and y between two rows of
+    contact points (..., 2, k, 3). The ground point is the point lowest in ``before``, followed to
+    ``after``: a foot rolling over its heel or toe does not slide (the slip of ``reward.kslip`` and
+    of the gait metrics: its length over the time between the rows)."""
+    lowest = np.argmin(before[..., 2], axis=-1)[..., None, None]
+    start = np.take_along_axis(before, lowest, axis=-2)[..., 0, :2]
+    end = np.take_along_axis(after, lowest, axis=-2)[..., 0, :2]
+    return end - start
 
 
 def step_length(soles: np.ndarray, foot: int) -> float:

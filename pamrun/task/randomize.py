@@ -87,7 +87,7 @@ class RandomizedWalker(gym.Env):
         super().reset(seed=seed)
         kwargs = self.draw()
         new = self.nominal if kwargs is self.kwargs else PamWalkerEnv(**{
-            k: self.typed[k] if v is self.kwargs[k] else v for k, v in kwargs.items()})
+            k: self.typed.get(k, v) if v is self.kwargs[k] else v for k, v in kwargs.items()})
         if self.env is not self.nominal and self.env is not new:
             self.env.close()
         self.env = new

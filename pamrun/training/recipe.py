@@ -27,7 +27,7 @@ import torch
 from pamrun.config import Config
 from pamrun.evaluation import figures
 from pamrun.learning import checkpoints, networks
-from pamrun.learning.curriculum import FEATURES, WalkCurriculum
+from pamrun.learning.curriculum import FeatureReader, WalkCurriculum, reweighted_terms
 from pamrun.runs import directory
 from pamrun.runs.directory import EVAL_FIELDS, CsvLog, EpisodeLog, RunFiles
 from pamrun.runs.files import Progress
@@ -51,14 +51,14 @@ def make_env(cfg: Config, seed: int | None = None):
     from torchrl.envs.gym_like import default_info_dict_reader
 
     import pamrun  # noqa: F401  (registers the env in worker processes too)
-    from pamrun.task.env import REWARD_KEYS
 
     kwargs, t = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}, cfg.train
+    kwargs["features"] = reweighted_terms(cfg)  # the curriculum's terms, computed at any weight
     env = GymWrapper(randomize.RandomizedWalker.from_config(kwargs, cfg) if t.randomize
                      else gym.make("pamrun/PamWalker-v0", **kwargs))
-    spec = {"distance": Unbounded((), dtype=torch.float64), "physics_error": Unbounded((), dtype=torch.bool),
-            FEATURES: Unbounded((len(REWARD_KEYS),), dtype=torch.float64)}  # what the env's info holds
+    spec = {"distance": Unbounded((), dtype=torch.float64), "physics_error": Unbounded((), dtype=torch.bool)}
     env.set_info_dict_reader(default_info_dict_reader(list(spec), spec=spec))
+    env.set_info_dict_reader(FeatureReader())  # the reward's terms by key, for the curriculum
     if seed is not None:
         env.set_seed(seed)
     return env

@@ -1,0 +1,67 @@
+"""The gait clock: its phase, which foot it swings, each foot's miss of it, and its period and
+step length at a commanded speed (``docs/environment.md``, "Gait clock").
+
+A stride of period T turns the phase phi once; the right foot's clock is phi, the left's
+phi + 1/2; each foot swings in the first ``env.swing_share`` of its period. ``reward.kgait``'s
+feature is 1 - (1/2) sum_feet miss (:func:`followed`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pamrun.config import EnvConfig
+
+
+def phase(phase0: float, steps: int, control_dt_s: float, period_s: float) -> float:
+    """The phase phi in [0, 1) after ``steps`` control steps from ``phase0``."""
+    return (phase0 + steps * control_dt_s / period_s) % 1.0
+
+
+def swing_weights(phase: float, swing_share: float) -> tuple[float, float]:
+    """How much the clock swings the right and the left foot at this phase: 1 in swing, 0 in
+    stance, smooth in between, s = (1 + tanh((sin 2 pi phi - cos pi sigma) / 0.1)) / 2."""
+    edge = math.cos(math.pi * swing_share)
+    return tuple(0.5 * (1.0 + math.tanh((math.sin(2 * math.pi * (phase + 0.5 * foot)) - edge) / 0.1))
+                 for foot in (0, 1))
+
+
+def foot_miss(swing: float, share: float, speed_m_s: float, lift_m: float, knee_rad: float, env: EnvConfig) -> float:
+    """One foot's miss of the clock, in [0, 1]: swing weight s, ground force as a share of the
+    weight, sole speed, lowest point's height above the floor and the leg's knee flexion (0
+    straight). s max(f, c, k) + (1 - s) max(u, 1 - min(2 f, 1)) (with the stance knee's share)."""
+    stance = max(min(speed_m_s, 1.0), 1.0 - min(2.0 * share, 1.0))  # moving, or not carrying
+    swing_miss = min(share, 1.0)  # carrying
+    if env.swing_clearance_m:  # not lifted
+        swing_miss = max(swing_miss, 1.0 - min(max(lift_m, 0.0) / env.swing_clearance_m, 1.0))
+    if env.swing_knee_deg:  # not bent
+        swing_miss = max(swing_miss, 1.0 - min(max(knee_rad, 0.0) / math.radians(env.swing_knee_deg), 1.0))
+    if env.stance_knee_deg:  # bent while it should carry
+        stance = max(stance, min(max(knee_rad, 0.0) / math.radians(env.stance_knee_deg), 1.0))
+    return swing * swing_miss + (1.0 - swing) * stance
+
+
+def followed(phase: float, soles_before: np.ndarray, soles: np.ndarray, shares: list[float], knees: list[float],
+             sole_radius_m: float, env: EnvConfig) -> float:
+    """1 - (1/2) sum_feet miss over one control step (``reward.kgait``'s feature): the feet's
+    contact points (2, k, 3) before and after it, their ground forces as shares of the weight
+    and the legs' knee flexions after it."""
+    moved = (soles[:, :, :2].mean(axis=1) - soles_before[:, :, :2].mean(axis=1)).tolist()
+    lifts = (soles[:, :, 2].min(axis=1) - sole_radius_m).tolist()
+    gait = 0.0
+    for foot, swing in enumerate(swing_weights(phase, env.swing_share)):
+        speed = math.hypot(*moved[foot]) / env.control_dt_s
+        gait -= 0.5 * foot_miss(swing, shares[foot], speed, lifts[foot], knees[foot], env)
+    return gait + 1.0
+
+
+def gait_at_speed(env: EnvConfig, speed_m_s: float) -> tuple[float, float]:
+    """The clock's period T [s] and kstep's step length L* [m] at commanded speed v*
+    (``env.gait_follows_speed``: T = T0 sqrt(v0 / v*), L* = L0 sqrt(v* / v0), v0 = 2 L0 / T0;
+    otherwise ``env.gait_period_s``, ``env.step_length_m``)."""
+    if not env.gait_follows_speed:
+        return env.gait_period_s, env.step_length_m
+    ratio = math.sqrt(speed_m_s * env.gait_period_s / (2 * env.step_length_m))  # sqrt(v* / v0)
+    return env.gait_period_s / ratio, env.step_length_m * ratio

@@ -1,0 +1,177 @@
+"""The reward as named terms: r = sum_k w_k f_k over the weights of ``RewardConfig``, each
+feature f_k one small function of the control step (:class:`Transition`), registered under
+its weight's key (``reward.<key>`` on the command line).
+
+A term returns its unweighted value; :class:`Reward` matches weights to terms by key, sums
+weight x feature in ``RewardConfig``'s field order (float64), and computes only the terms whose
+weight is not 0 or that a reader asks for (``features``): the others are 0. A step whose physics
+blew up has every feature 0. Adding a term is one function here and one ``RewardConfig`` field;
+:func:`check_terms` (and the tests) fail when a weight has no term or a term no weight. The
+formulas: ``docs/environment.md``, "Reward".
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from pamrun.config import RewardConfig
+from pamrun.task import clock
+from pamrun.task.measures import ground_point_shift_m, step_length, stop_share
+
+REWARD_KEYS = tuple(f.name for f in fields(RewardConfig))  # the weights, in the summation order
+
+
+@dataclass(slots=True)
+class Transition:
+    """One control step as the terms read it: the env's constants, the state after the step, the
+    commands, and each foot's contact points (2, k, 3) and ground contact before and after."""
+
+    env: Any  # PamWalkerEnv: z0, env_cfg, stop bounds, ...
+    episode: Any  # its per-episode state (v*, L*, the clock's phase)
+    torso: tuple[float, ...]  # x, y, z, roll, pitch, yaw, vx, vy, vz, wx, wy, wz
+    qpos: list[float]
+    action: np.ndarray  # the command applied in this step
+    previous: np.ndarray  # the one applied in the step before (0 after reset)
+    soles_before: np.ndarray
+    soles: np.ndarray
+    contact_before: list[bool]
+    contact: list[bool]
+    forces_n: list[float]  # ground force under each foot after the step [N]
+    fell: bool = False
+    air_nl: float = 0.0  # supply air drawn in the step, when the env meters it
+
+
+TERMS: dict[str, Callable[[Transition], float]] = {}
+
+
+def term(key: str) -> Callable:
+    """Register a function of a :class:`Transition` as the feature that ``reward.<key>`` weighs."""
+    def register(fn: Callable[[Transition], float]) -> Callable[[Transition], float]:
+        TERMS[key] = fn
+        return fn
+    return register
+
+
+@term("kvx")
+def forward(t: Transition) -> float:
+    return t.torso[6]  # Vx [m/s]
+
+
+@term("ky")
+def lateral(t: Transition) -> float:
+    return -(t.torso[1] ** 2)
+
+
+@term("kz")
+def height(t: Transition) -> float:
+    return -((t.torso[2] - t.env.z0) ** 2)
+
+
+@term("kv")
+def effort(t: Transition) -> float:
+    return -float(np.add.reduce(t.action * t.action))  # = -np.sum(a**2), bit for bit
+
+
+@term("kt")
+def alive(t: Transition) -> float:
+    return t.env.env_cfg.control_dt_s / t.env.env_cfg.episode_s
+
+
+@term("kda")
+def command_change(t: Transition) -> float:
+    return -float(np.add.reduce((t.action - t.previous) ** 2))
+
+
+@term("kfall")
+def fall(t: Transition) -> float:
+    return -float(t.fell)
+
+
+@term("kstop")
+def joint_stops(t: Transition) -> float:
+    q = [t.qpos[adr] for adr in t.env.qpos_addresses]
+    return -stop_share(q, t.env.stop_bounds, t.contact)
+
+
+@term("kspeed")
+def speed(t: Transition) -> float:
+    return math.exp(-(((t.torso[6] - t.episode.target_speed_m_s) / t.env.env_cfg.speed_sigma_m_s) ** 2))
+
+
+@term("kslip")
+def slip(t: Transition) -> float:
+    """Minus the summed horizontal speed of the feet on the ground at both ends of the step [m/s]."""
+    shift, total = ground_point_shift_m(t.soles_before, t.soles).tolist(), 0.0
+    for foot in (0, 1):
+        if t.contact[foot] and t.contact_before[foot]:
+            total += math.hypot(*shift[foot]) / t.env.env_cfg.control_dt_s
+    return -total
+
+
+@term("kair")
+def air(t: Transition) -> float:
+    return -t.air_nl
+
+
+@term("kstep")
+def step_miss(t: Transition) -> float:
+    """Minus sum over the feet touching down in the step of (s - L*)^2 / L* [m]."""
+    target, miss = t.episode.step_length_m, 0.0
+    for foot in (0, 1):
+        if t.contact[foot] and not t.contact_before[foot]:
+            miss += (step_length(t.soles, foot) - target) ** 2 / target
+    return -miss
+
+
+@term("kgait")
+def gait_clock(t: Transition) -> float:
+    """1 - the feet's miss of the gait clock (0 without a clock)."""
+    env = t.env
+    if not env.gait_clock:
+        return 0.0
+    shares = [f / env.weight_n for f in t.forces_n]
+    knees = [t.qpos[adr] for adr in env.knee_addresses]
+    return clock.followed(t.episode.phase(env.env_cfg), t.soles_before, t.soles, shares, knees, env.sole_radius_m,
+                          env.env_cfg)
+
+
+def check_terms(keys: Iterable[str] = REWARD_KEYS) -> None:
+    """Every weight has a term and every term a weight; ValueError naming the odd ones out."""
+    keys = tuple(keys)
+    unweighted, missing = sorted(set(TERMS) - set(keys)), [k for k in keys if k not in TERMS]
+    if unweighted or missing:
+        raise ValueError(f"reward terms without a weight in RewardConfig: {unweighted}; "
+                         f"weights without a term: {missing}")
+
+
+check_terms()
+
+
+class Reward:
+    """The weights of a ``RewardConfig`` and the terms they need (plus ``features``, computed at
+    any weight for a reader that re-weights them, e.g. a training curriculum)."""
+
+    def __init__(self, cfg: RewardConfig, features: Iterable[str] = ()):
+        features = tuple(features)
+        unknown = sorted(set(features) - set(REWARD_KEYS))
+        if unknown:
+            raise ValueError(f"unknown reward features {unknown}; known: {', '.join(REWARD_KEYS)}")
+        self.weights = {k: float(getattr(cfg, k)) for k in REWARD_KEYS}
+        self.computed = tuple(k for k in REWARD_KEYS if self.weights[k] or k in features)
+        self._terms = [(k, TERMS[k]) for k in self.computed]
+        self._zeros = dict.fromkeys(REWARD_KEYS, 0.0)
+
+    def __call__(self, t: Transition | None) -> tuple[float, dict[str, float], dict[str, float]]:
+        """The reward, its weighted terms and its features, both by key (``t`` None: a step whose
+        physics blew up, every feature 0)."""
+        features = self._zeros.copy()
+        if t is not None:
+            for key, feature in self._terms:
+                features[key] = feature(t)
+        terms = {k: w * features[k] for k, w in self.weights.items()}
+        return float(sum(terms.values())), terms, features

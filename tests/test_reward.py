@@ -1,0 +1,152 @@
+"""The reward as named terms (pamrun.task.reward), the per-step measures it shares with the gait
+metrics (pamrun.task.measures), and replay buffers saved with the terms as one array."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import fields
+
+import numpy as np
+import pytest
+import torch
+
+from pamrun.config import BodyConfig, MuscleConfig, RewardConfig, as_config
+from pamrun.evaluation.metrics import GaitSpec, foot_slip_m_s, knee_swing_stop_share, stop_shares
+from pamrun.physics.actuation import muscle_counts
+from pamrun.physics.body import JOINTS
+from pamrun.task import reward as reward_mod
+from pamrun.task.measures import KNEES, at_stops, ground_point_shift_m, stop_bounds, stop_share
+from pamrun.task.reward import REWARD_KEYS, TERMS, Reward, check_terms
+from tests.test_train import TINY, train_here
+
+LIMITS = np.tile([-0.5, 0.5], (len(JOINTS), 1))  # every joint: +-0.5 rad
+BOUNDS = stop_bounds(LIMITS, 0.1)  # at a stop outside +-0.4 rad
+
+
+def test_every_weight_has_a_term_and_every_term_a_weight():
+    """The reward's terms are RewardConfig's weights, key for key, in its field order; a weight
+    without a term, or a term without a weight, fails."""
+    assert REWARD_KEYS == tuple(f.name for f in fields(RewardConfig)) and set(TERMS) == set(REWARD_KEYS)
+    check_terms()
+    with pytest.raises(ValueError, match=r"weights without a term: \['kjump'\]"):
+        check_terms((*REWARD_KEYS, "kjump"))
+    with pytest.raises(ValueError, match=r"without a weight in RewardConfig: \['kgait'\]"):
+        check_terms(REWARD_KEYS[:-1])
+
+
+def test_reward_sums_weight_times_term_by_key_and_skips_unweighted_terms(monkeypatch):
+    """Weights meet their terms by key, never by position; a term whose weight is 0 is not called
+    (its feature is 0) unless a reader asks for it; a blown-up step's features are all 0."""
+    called = []
+    for key in REWARD_KEYS:
+        monkeypatch.setitem(TERMS, key, lambda t, key=key: called.append(key) or float(REWARD_KEYS.index(key) + 1))
+    weights = {k: 0.0 for k in REWARD_KEYS} | {"kz": 2.0, "kvx": 0.5}
+    reward = Reward(RewardConfig(**weights), features=["kslip"])
+    total, terms, features = reward(object())
+    assert called == ["kvx", "kz", "kslip"] and reward.computed == ("kvx", "kz", "kslip")
+    assert features == {k: 0.0 for k in REWARD_KEYS} | {"kvx": 1.0, "kz": 3.0, "kslip": 10.0}
+    assert terms["kz"] == 6.0 and terms["kslip"] == 0.0 and total == 0.5 + 6.0
+    assert Reward(RewardConfig(**weights))(None) == (0.0, dict.fromkeys(REWARD_KEYS, 0.0), dict.fromkeys(REWARD_KEYS, 0.0))
+    with pytest.raises(ValueError, match="unknown reward features"):
+        Reward(RewardConfig(), features=["kjump"])
+
+
+def test_stop_share_counts_hips_ankles_and_swinging_knees():
+    """kstop's share: hips and ankles within the margin of a stop, and the knee of a leg whose foot
+    is off the ground (a knee in stance rests on its lock by design)."""
+    q = np.full(len(JOINTS), 0.45)  # every joint past its upper bound
+    assert at_stops(q, BOUNDS).all() and not at_stops(np.zeros(len(JOINTS)), BOUNDS).any()
+    assert at_stops([[-0.4, 0.39] + [0.0] * 8], BOUNDS)[0, :2].tolist() == [True, False]  # on the bound counts
+    assert stop_share(q, BOUNDS, [True, True]) == 1.0
+    q[KNEES[0]] = 0.0
+    assert stop_share(q, BOUNDS, [True, True]) == 1.0  # the mid-range knee is in stance: not counted
+    q[0] = 0.0
+    assert stop_share(q, BOUNDS, [True, True]) == pytest.approx(7 / 8)
+    assert stop_share(q, BOUNDS, [True, False]) == pytest.approx(8 / 9)  # the left knee swings, at its stop
+    assert stop_share(q, BOUNDS, [False, True]) == pytest.approx(7 / 9)  # the right knee swings, mid-range
+
+
+def test_gait_metrics_stop_shares_use_the_same_bounds():
+    """The gait metrics count a joint at its stop where kstop does: per joint over rows, and the
+    knees in swing."""
+    spec = GaitSpec(dt_s=0.025, joint_limits_rad=LIMITS, mass_kg=10.0, muscles_per_side=1, nominal_length_m=0.2,
+                    inner_diameter_m=0.02, stop_margin_rad=0.1)
+    q = np.zeros((4, len(JOINTS)))
+    q[:2, 0], q[1:, KNEES[1]] = 0.45, -0.41
+    assert stop_shares(q, spec)[[0, 1, KNEES[1]]].tolist() == [0.5, 0.0, 0.75]
+    contact = np.array([[True, True], [True, False], [False, False], [True, True]])
+    assert knee_swing_stop_share(q, contact, spec) == pytest.approx(2 / 3)  # left swings in rows 1, 2; right in 2
+
+
+def _feet(lowest_z: float = 0.0) -> np.ndarray:
+    """(2, 4, 3): four contact points per foot, the first the lowest."""
+    soles = np.zeros((2, 4, 3))
+    soles[:, :, 0] = [0.0, 0.1, 0.0, 0.1]
+    soles[:, :, 2] = [lowest_z, 0.01, 0.01, 0.01]
+    return soles
+
+
+def test_ground_point_shift_follows_the_lowest_point():
+    """A foot's slip is how far the point lowest before the step slides: a foot rolling (its
+    other points moving) does not slip; one sliding 3 cm sideways and 4 cm forward slips 5 cm."""
+    before, after = _feet(), _feet()
+    after[0, 1:, 2] += 0.05  # the right foot rolls over its lowest point
+    after[1, :, :2] += [0.04, 0.03]  # the left foot slides
+    shift = ground_point_shift_m(before, after)
+    assert shift.shape == (2, 2) and shift[0].tolist() == [0.0, 0.0]
+    assert np.linalg.norm(shift[1]) == pytest.approx(0.05)
+    rows = {"t_s": [0.0, 0.5], "sole_xyz_m": [before, after]}
+    assert foot_slip_m_s(rows, np.ones((2, 2), bool)) == pytest.approx((0.0 + 0.1) / 2)  # per foot, averaged
+    t = reward_mod.Transition(env=type("E", (), {"env_cfg": type("C", (), {"control_dt_s": 0.5})})(), episode=None,
+                              torso=(), qpos=[], action=np.zeros(1), previous=np.zeros(1), soles_before=before,
+                              soles=after, contact_before=[True, True], contact=[True, True], forces_n=[1.0, 1.0])
+    assert reward_mod.slip(t) == pytest.approx(-0.1)  # summed over the feet
+    t.contact_before = [True, False]  # the left foot touched down: no slip
+    assert reward_mod.slip(t) == 0.0
+
+
+def test_muscle_counts_are_physics_one_definition():
+    """The gait metrics' (and the env's air meter's) muscles per joint are physics.actuation's."""
+    muscle = as_config({"count": {"knee": 2}}, MuscleConfig)
+    expected = [getattr(muscle.count, name.split("_", 1)[1]) for name in JOINTS]
+    assert muscle_counts(muscle).tolist() == expected and muscle_counts(muscle)[KNEES].tolist() == [2.0, 2.0]
+    spec = GaitSpec.from_configs(BodyConfig(), muscle, 30.0, 0.025)
+    assert spec.muscles_per_side.tolist() == muscle_counts(muscle).tolist()
+
+
+@pytest.mark.slow
+def test_a_checkpoint_with_the_terms_as_one_array_resumes(tmp_path):
+    """A resume state saved when the buffer held the reward's terms as one (n, 13) array (pamrun
+    before the terms had names) resumes: each column becomes the term of its key."""
+    from tensordict import TensorDict
+    from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+
+    from pamrun.learning.checkpoints import ARRAY_TERMS, LAST, file_fingerprints
+    from pamrun.learning.curriculum import FEATURES
+    from pamrun.runs.directory import saved_config
+
+    run = tmp_path / "run"
+    assert train_here(run, *TINY, "train.max_frames=400", "train.eval_every_frames=0") == "max_frames"
+    state = torch.load(run / "checkpoints" / LAST, weights_only=True)
+    folder = run / "checkpoints" / state["buffer"]["dir"]
+    size = saved_config(run).train.buffer_size
+    buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(size))
+    buffer.loads(folder)
+    named = buffer.storage._storage.get(("next", FEATURES))
+    columns = torch.stack([named[k] for k in ARRAY_TERMS], dim=-1)  # the old writer's layout
+    buffer.storage._storage.del_(("next", FEATURES))
+    buffer.storage._storage.set(("next", FEATURES), columns)
+    buffer.dumps(folder)
+    state["buffer"]["files"] = file_fingerprints(folder)
+    torch.save(state, run / "checkpoints" / LAST)
+
+    assert train_here(run, f"resume={run}", "train.max_frames=600") == "max_frames"
+    resumed = TensorDictReplayBuffer(storage=LazyTensorStorage(size))
+    state = torch.load(run / "checkpoints" / LAST, weights_only=True)
+    resumed.loads(run / "checkpoints" / state["buffer"]["dir"])
+    terms = resumed.storage._storage.get(("next", FEATURES))
+    assert isinstance(terms, TensorDict) and set(terms.keys()) == set(REWARD_KEYS)
+    n = len(buffer)
+    for i, key in enumerate(ARRAY_TERMS):
+        assert torch.equal(terms[key][:n], columns[:n, i]), key
+    assert math.isclose(float(terms["kt"][n - 1]), 0.025 / 10) or float(terms["kt"][n - 1]) == 0.0
