@@ -140,12 +140,11 @@ def test_the_shipped_walker_exports_to_its_own_actions(tmp_path):
     import onnxruntime as ort
 
     from pamrun.config import Config
-    from pamrun.evaluation.episodes import env_kwargs, make_policy
-    from pamrun.task.env import PamWalkerEnv
+    from pamrun.evaluation.episodes import agent_env, make_policy
 
     path = str(Path(__file__).parents[1] / "agents" / "walker_td3_seed0.pt")
     agent = load_agent(path)
-    policy, env, obs = make_policy(agent), PamWalkerEnv(**env_kwargs(agent, Config())), []
+    policy, env, obs = make_policy(agent), agent_env(agent, Config()).make(), []
     for seed in range(1000, 1010):  # its held-out episodes until 1,000 observations (a fall ends one early)
         o, _ = env.reset(seed=seed)
         for _ in range(400):

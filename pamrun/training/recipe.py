@@ -18,7 +18,6 @@ import functools
 import math
 import random
 import time
-from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +32,7 @@ from pamrun.runs.directory import EVAL_FIELDS, CsvLog, EpisodeLog, RunFiles
 from pamrun.runs.files import Progress
 from pamrun.runs.machine import Terminated, stop_signals, usable_cores
 from pamrun.task import randomize
+from pamrun.task.spec import EnvSpec
 from pamrun.task.symmetry import mirror_batch
 from pamrun.training.console import end_of_run, header_table, summary_table
 
@@ -53,9 +53,9 @@ def make_env(cfg: Config, seed: int | None = None):
     import pamrun  # noqa: F401  (registers the env in worker processes too)
     from pamrun.task.env import REWARD_KEYS
 
-    kwargs, t = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}, cfg.train
-    env = GymWrapper(randomize.RandomizedWalker.from_config(kwargs, cfg) if t.randomize
-                     else gym.make("pamrun/PamWalker-v0", **kwargs))
+    spec, t = EnvSpec.from_config(cfg), cfg.train
+    env = GymWrapper(randomize.RandomizedWalker.from_config(spec, cfg) if t.randomize
+                     else gym.make("pamrun/PamWalker-v0", **spec.sections()))
     spec = {"distance": Unbounded((), dtype=torch.float64), "physics_error": Unbounded((), dtype=torch.bool),
             FEATURES: Unbounded((len(REWARD_KEYS),), dtype=torch.float64)}  # what the env's info holds
     env.set_info_dict_reader(default_info_dict_reader(list(spec), spec=spec))
@@ -286,7 +286,7 @@ class Evaluations:
     its evaluation is stored in it, so a resumed run keeps comparing against it."""
 
     def __init__(self, cfg: Config, out: Path, writer):
-        from pamrun.evaluation.evaluate import TrainingEvaluator
+        from pamrun.evaluation.evaluator import TrainingEvaluator
 
         self.best_path = RunFiles(out).best_eval
         self.evaluator = TrainingEvaluator(cfg)
