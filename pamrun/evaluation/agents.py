@@ -56,7 +56,9 @@ def run_all(agents: list[Agent], envs: list[EnvSpec], ecfg, console, what: str =
             ) -> tuple[list[list[dict]], int, float]:
     """Every agent's episodes in its env, on ``eval.workers`` processes with a progress display."""
     workers = min(ecfg.workers or usable_cores(), len(agents) * ecfg.episodes)
-    import pamrun.learning.networks  # noqa: F401  (torch and TorchRL, imported before the clock starts)
+    # torch and TorchRL, imported before the clock starts (here, not at the top: pamrun eval imports
+    # this module before it checks its config, and a config error need not wait seconds for them)
+    import pamrun.learning.networks  # noqa: F401
 
     console.print(f"Evaluating {len(agents)} {what} x {ecfg.episodes} episode(s), seeds {ecfg.seed}.."
                   f"{ecfg.seed + ecfg.episodes - 1}, on {workers} worker(s)")
