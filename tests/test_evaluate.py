@@ -13,13 +13,13 @@ import pytest
 import torch
 
 from pamrun.config import ConfigError, EvalConfig, to_object
+from pamrun.evaluation.agents import load_agents
 from pamrun.evaluation.episodes import (
     agent_env,
     aggregate,
     evaluate_agents,
     run_episode,
 )
-from pamrun.evaluation.agents import load_agents
 from pamrun.evaluation.ranking import rank
 from pamrun.learning.checkpoints import CheckpointError, find_checkpoints, load_agent
 from pamrun.task.criteria import stood, walk_passed

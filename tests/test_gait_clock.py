@@ -151,8 +151,8 @@ def test_impossible_gait_clocks_fail_naming_the_key(override, key):
 def test_a_clocked_agent_trains_mirrored_evaluates_and_exports_its_clock(tmp_path):
     """A run with the clock (mirrored transitions included) saves agents of 45 inputs; pamrun
     eval runs them with their clock; the export's metadata names the clock's block and period."""
-    from pamrun.evaluation.episodes import evaluate_agents
     from pamrun.evaluation.agents import load_agents
+    from pamrun.evaluation.episodes import evaluate_agents
     from pamrun.evaluation.export import metadata
 
     run = tmp_path / "run"

@@ -38,8 +38,8 @@ import numpy as np
 import pytest
 
 from pamrun.config import Perturbation, to_object
-from pamrun.evaluation.episodes import aggregate, evaluate_agents
 from pamrun.evaluation.agents import load_agents
+from pamrun.evaluation.episodes import aggregate, evaluate_agents
 from tests.conftest import compose_config, run_pamrun
 
 AGENT = Path(__file__).parents[1] / "agents" / "walker_td3_seed0.pt"

@@ -62,8 +62,8 @@ def test_impossible_speed_commands_fail_naming_the_key(override, key):
 def test_a_speed_commanded_agent_trains_with_mirroring_and_is_told_the_asked_speed(tmp_path):
     """A run with the command in its observation (mirrored transitions included) saves agents of
     that size; pamrun eval's loader gives each episode eval.speed_m_s, held, and runs them."""
-    from pamrun.evaluation.episodes import evaluate_agents
     from pamrun.evaluation.agents import load_agents
+    from pamrun.evaluation.episodes import evaluate_agents
 
     run = tmp_path / "run"
     assert train_here(run, *TINY, "train.max_frames=400", "train.eval_every_frames=0", "train.mirror=true",
