@@ -36,7 +36,6 @@ import numpy as np
 from pamrun.config import MuscleConfig, preset
 from pamrun.task.env import PamWalkerEnv
 
-
 CLOCKS = {"wall": time.perf_counter, "cpu": time.thread_time}
 clock = CLOCKS["wall"]  # main() sets --timer's
 

@@ -2,7 +2,7 @@
 
     python benchmarks/eval_scaling.py [--ckpt PATH] [--agents 4] [--episodes 10] [--workers 1 2]
 
-Evaluates N agents x K episodes with ``pamrun.evaluation.evaluate.evaluate_agents`` once per worker
+Evaluates N agents x K episodes with ``pamrun.evaluation.episodes.evaluate_agents`` once per worker
 count, checks the results are identical, and prints the wall times and speed-ups. Without
 ``--ckpt`` it writes ``--agents`` untrained actors (different seeds) to a temporary folder;
 those fall within ~1-2 s, so their episodes are short. ``--ckpt`` takes what ``pamrun eval
@@ -26,7 +26,7 @@ from pamrun.evaluation.episodes import evaluate_agents
 from pamrun.evaluation.evaluate import load_agents
 from pamrun.learning.checkpoints import agent_record
 from pamrun.learning.networks import ThesisActor
-from pamrun.task.env import N_JOINTS, OBS_SIZE
+from pamrun.task.observation import N_JOINTS, OBS_SIZE
 
 
 def untrained_agents(folder: Path, n: int, cfg: Config) -> str:

@@ -25,7 +25,8 @@ from pamrun.physics.capacity import (
     WALKING_RANGE_DEG,
     analyse,
 )
-from pamrun.task.env import PamWalkerEnv, space_sizes
+from pamrun.task.env import PamWalkerEnv
+from pamrun.task.observation import space_sizes
 from tests.conftest import run_pamrun, thesis_muscle
 
 

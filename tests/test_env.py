@@ -15,7 +15,8 @@ from gymnasium.utils.env_checker import check_env
 import pamrun  # noqa: F401  (registers the env)
 from pamrun.config import ConfigError, RewardConfig
 from pamrun.physics.body import JOINTS
-from pamrun.task.env import PamWalkerEnv, quat_to_euler
+from pamrun.task.env import PamWalkerEnv
+from pamrun.task.observation import quat_to_euler
 from tests.conftest import thesis_muscle
 
 

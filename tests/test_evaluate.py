@@ -13,16 +13,17 @@ import pytest
 import torch
 
 from pamrun.config import ConfigError, EvalConfig, to_object
+from pamrun.evaluation.agents import load_agents
 from pamrun.evaluation.episodes import (
+    agent_env,
     aggregate,
-    env_kwargs,
     evaluate_agents,
     run_episode,
 )
-from pamrun.evaluation.evaluate import load_agents, rank
+from pamrun.evaluation.ranking import rank
 from pamrun.learning.checkpoints import CheckpointError, find_checkpoints, load_agent
 from pamrun.task.criteria import stood, walk_passed
-from pamrun.task.env import N_JOINTS, OBS_SIZE, PamWalkerEnv
+from pamrun.task.observation import N_JOINTS, OBS_SIZE
 from tests.conftest import compose_config, run_pamrun
 
 ECFG = EvalConfig()  # the walk test: 10 s, |y| <= 0.5 m, at least 7 m
@@ -109,7 +110,7 @@ def test_impossible_eval_values_name_the_key(override, key):
 def test_episode_metrics_agree_with_its_steps(tmp_path):
     """Duration, max |y| and the pressure-change figure recomputed from the recorded steps."""
     cfg = to_object(compose_config("eval.episode_s=2.0", "eval.walk_duration_s=2.0"))
-    env = PamWalkerEnv(**env_kwargs(_fake_agent(tmp_path), cfg))
+    env = agent_env(_fake_agent(tmp_path), cfg).make()
     rng = np.random.default_rng(0)
     ep = run_episode(lambda obs: rng.uniform(-0.5, 0.5, N_JOINTS).astype(np.float32), env, seed=3)
     steps = ep["steps"]

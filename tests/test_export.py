@@ -13,7 +13,7 @@ from pamrun.config import to_object
 from pamrun.evaluation.export import actor_of, metadata, read_metadata
 from pamrun.learning.checkpoints import agent_record, load_agent
 from pamrun.physics.body import JOINTS
-from pamrun.task.env import OBSERVATION_UNITS, observation_structure
+from pamrun.task.observation import OBSERVATION_UNITS, observation_structure
 from tests.conftest import compose_config, run_pamrun
 
 pytest.importorskip("onnx")
@@ -23,7 +23,7 @@ def _agent_file(tmp_path, *overrides: str):
     """An untrained actor with large random weights (actions spread over [-1, 1]) as an agent
     file, its robot the thesis' muscle model so its scaling differs from the defaults."""
     from pamrun.learning.networks import ThesisActor
-    from pamrun.task.env import space_sizes
+    from pamrun.task.observation import space_sizes
 
     cfg = to_object(compose_config("muscle=thesis", *overrides))
     obs_size, action_size = space_sizes(cfg.muscle)
@@ -140,12 +140,11 @@ def test_the_shipped_walker_exports_to_its_own_actions(tmp_path):
     import onnxruntime as ort
 
     from pamrun.config import Config
-    from pamrun.evaluation.episodes import env_kwargs, make_policy
-    from pamrun.task.env import PamWalkerEnv
+    from pamrun.evaluation.episodes import agent_env, make_policy
 
     path = str(Path(__file__).parents[1] / "agents" / "walker_td3_seed0.pt")
     agent = load_agent(path)
-    policy, env, obs = make_policy(agent), PamWalkerEnv(**env_kwargs(agent, Config())), []
+    policy, env, obs = make_policy(agent), agent_env(agent, Config()).make(), []
     for seed in range(1000, 1010):  # its held-out episodes until 1,000 observations (a fall ends one early)
         o, _ = env.reset(seed=seed)
         for _ in range(400):

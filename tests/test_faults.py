@@ -259,7 +259,7 @@ def test_a_buffer_from_an_earlier_reward_is_named_not_trained_on(tmp_path, missi
 
     from pamrun.learning.checkpoints import CheckpointError, check_reward_terms
     from pamrun.learning.curriculum import FEATURES
-    from pamrun.task.env import REWARD_KEYS
+    from pamrun.task.reward import REWARD_KEYS
 
     width = len(REWARD_KEYS) - missing
     saved = TensorDictReplayBuffer(storage=LazyTensorStorage(10))

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from pamrun.config import ConfigError, to_object
-from pamrun.task.env import PamWalkerEnv, foot_miss, swing_weights
+from pamrun.task.clock import foot_miss, swing_weights
+from pamrun.task.env import PamWalkerEnv
 from pamrun.task.symmetry import action_map, mirror_state, observation_map
 from tests.conftest import compose_config
 from tests.test_train import TINY, train_here
@@ -151,17 +152,17 @@ def test_impossible_gait_clocks_fail_naming_the_key(override, key):
 def test_a_clocked_agent_trains_mirrored_evaluates_and_exports_its_clock(tmp_path):
     """A run with the clock (mirrored transitions included) saves agents of 45 inputs; pamrun
     eval runs them with their clock; the export's metadata names the clock's block and period."""
+    from pamrun.evaluation.agents import load_agents
     from pamrun.evaluation.episodes import evaluate_agents
-    from pamrun.evaluation.evaluate import load_agents
     from pamrun.evaluation.export import metadata
 
     run = tmp_path / "run"
     assert train_here(run, *TINY, "train.max_frames=400", "train.eval_every_frames=0", "train.mirror=true",
                       "env.gait_period_s=0.8", "reward.kgait=1") == "max_frames"
     cfg = to_object(compose_config("eval.episodes=2", "eval.episode_s=1", "eval.walk_duration_s=1"))
-    agents, kwargs, errors = load_agents(str(run / "checkpoints" / "last.pt"), cfg)
-    assert not errors and agents[0].obs_size == 45 and kwargs[0]["env"]["gait_period_s"] == 0.8
-    (episodes,) = evaluate_agents(agents, kwargs, 2, 1000, 1, keep_steps=False)
+    agents, envs, errors = load_agents(str(run / "checkpoints" / "last.pt"), cfg)
+    assert not errors and agents[0].obs_size == 45 and envs[0].env.gait_period_s == 0.8
+    (episodes,) = evaluate_agents(agents, envs, 2, 1000, 1, keep_steps=False)
     assert len(episodes) == 2 and all(np.isfinite(e["distance_m"]) for e in episodes)
     meta = metadata(agents[0], "onnx")
     assert meta["observation_layout"]["gait_clock"] == [43, 45] and meta["gait_clock"]["period_s"] == 0.8

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict
 
 import numpy as np
 import pytest
@@ -12,14 +11,14 @@ import pytest
 from pamrun.config import ConfigError, to_object
 from pamrun.task.env import PamWalkerEnv
 from pamrun.task.reward import REWARD_KEYS
+from pamrun.task.spec import EnvSpec
 from tests.conftest import compose_config
 
 
 def walker(cfg, names, prob=1.0, reach=1.0, count=1):
     from pamrun.task.randomize import RandomizedWalker
 
-    kwargs = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}
-    return RandomizedWalker(kwargs, {n: cfg.eval.perturbations[n] for n in names}, prob, reach, count)
+    return RandomizedWalker(EnvSpec.from_config(cfg), {n: cfg.eval.perturbations[n] for n in names}, prob, reach, count)
 
 
 def test_each_episode_draws_a_perturbation_reproducibly(cfg):
@@ -82,10 +81,10 @@ def test_weights_draw_a_perturbation_more_often(cfg):
     from pamrun.task.randomize import RandomizedWalker
 
     names = ["mass_heavy", "friction_low", "lag_x2"]
-    kwargs = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}
+    spec = EnvSpec.from_config(cfg)
 
     def draws(weights):
-        env = RandomizedWalker(kwargs, {n: cfg.eval.perturbations[n] for n in names}, 1.0, 1.0, 1, weights)
+        env = RandomizedWalker(spec, {n: cfg.eval.perturbations[n] for n in names}, 1.0, 1.0, 1, weights)
         env.reset(seed=7)
         out = [(env.draw(), env.drawn[0][0])[1] for _ in range(200)]
         env.close()
@@ -108,17 +107,17 @@ def test_a_name_can_reach_further_than_the_others(cfg):
     from pamrun.task.randomize import RandomizedWalker, check
 
     names = ["mass_heavy", "friction_low"]
-    kwargs = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}
-    env = RandomizedWalker(kwargs, {n: cfg.eval.perturbations[n] for n in names}, 1.0, 1.0, 2, None,
+    spec = EnvSpec.from_config(cfg)
+    env = RandomizedWalker(spec, {n: cfg.eval.perturbations[n] for n in names}, 1.0, 1.0, 2, None,
                            {"friction_low": 2.0})
     env.reset(seed=3)
     strengths = {n: [] for n in names}
     for _ in range(200):
-        kw = env.draw()
+        drawn = env.draw()
         for n, s in env.drawn:
             strengths[n].append(s)
         s = dict(env.drawn)["friction_low"]
-        assert kw["body"]["friction_static"] == pytest.approx(cfg.body.friction_static * (1 - 0.3 * s))
+        assert drawn.body.friction_static == pytest.approx(cfg.body.friction_static * (1 - 0.3 * s))
     assert max(strengths["mass_heavy"]) <= 1.0 < max(strengths["friction_low"]) <= 2.0
     assert sum(s > 1 for s in strengths["friction_low"]) > 70  # expected 100 of 200
     env.close()

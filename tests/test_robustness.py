@@ -11,11 +11,13 @@ import pytest
 import torch
 
 from pamrun.config import ConfigError, Perturbation, to_object
-from pamrun.evaluation.episodes import aggregate, env_kwargs, wilson_interval
-from pamrun.evaluation.evaluate import check_config, held_out, selection_block
+from pamrun.evaluation.episodes import agent_env, aggregate, wilson_interval
+from pamrun.evaluation.evaluate import check_config
+from pamrun.evaluation.evaluator import TrainingEvaluator
+from pamrun.evaluation.ranking import held_out, selection_block
 from pamrun.learning.checkpoints import load_agent
-from pamrun.task.env import N_JOINTS, OBS_BASE, OBS_SIZE, PamWalkerEnv
-from pamrun.task.spec import perturb
+from pamrun.task.env import PamWalkerEnv
+from pamrun.task.observation import N_JOINTS, OBS_BASE, OBS_SIZE
 from tests.conftest import compose_config, run_pamrun
 
 # --------------------------------------------------------------------------- intervals
@@ -76,8 +78,6 @@ def test_the_default_evaluation_is_held_out_from_the_selection_seeds(tmp_path):
 
 
 def test_training_selects_on_the_selection_block():
-    from pamrun.evaluation.evaluate import TrainingEvaluator
-
     cfg = to_object(compose_config("train.eval_episodes=2", "eval.episode_s=0.5", "eval.walk_duration_s=0.5",
                                    "eval.selection_seed=7"))
     evaluator = TrainingEvaluator(cfg)
@@ -90,8 +90,6 @@ def _select_evaluator(walk_distance_m: float, shoves: int | None = None):
     """A training evaluator whose nominal block a standing actor passes (1 s; a sway back of a
     few mm is no fall) when ``walk_distance_m`` is below 0, selecting also under a shove it
     cannot stand (``shoves`` episodes of it: train.select_episodes_of; None: select_episodes)."""
-    from pamrun.evaluation.evaluate import TrainingEvaluator
-
     overrides = ["train.eval_episodes=2", "train.select_episodes=3", "eval.episode_s=1.0", "eval.walk_duration_s=1.0",
                  "+eval.perturbations.shove={values:{env:{push_impulse_ns:[0,150,0],push_time_s:0.1,"
                  "push_duration_s:0.1}}}", "train.select_perturbations=[shove]"]
@@ -131,8 +129,6 @@ def test_selection_under_perturbation_is_checked_with_the_config(override, key):
 
 
 def test_training_keeps_the_agent_that_holds_under_perturbation():
-    from pamrun.evaluation.evaluate import TrainingEvaluator
-
     evaluator = _select_evaluator(-1.0)
     evaluator.close()
     best = {"walk_pass_rate": 1.0, "stand_rate": 1.0, "distance_mean": 9.0, "select_pass_rate": 0.7}
@@ -190,27 +186,28 @@ def test_observation_noise_is_seeded_and_spares_the_previous_action():
 
 def test_a_perturbation_reaches_the_simulated_robot(tmp_path):
     cfg = to_object(compose_config())
-    kwargs = env_kwargs(_agent(tmp_path, {}), cfg)
+    spec = agent_env(_agent(tmp_path, {}), cfg)
     p = cfg.eval.perturbations
-    low = perturb(kwargs, p["friction_low"], "eval.perturbations.friction_low")
-    env, base = PamWalkerEnv(**low), PamWalkerEnv(**kwargs)
+    low = spec.perturbed(p["friction_low"], "eval.perturbations.friction_low")
+    env, base = low.make(), spec.make()
     sole = mujoco.mj_name2id(env.model, mujoco.mjtObj.mjOBJ_GEOM, "left_contact_front_left")
     assert env.model.geom_friction[sole, 0] == pytest.approx(0.7 * base.model.geom_friction[sole, 0])
-    heavy = PamWalkerEnv(**perturb(kwargs, p["mass_heavy"], "x"))
+    heavy = spec.perturbed(p["mass_heavy"], "x").make()
     assert heavy.mass_kg == pytest.approx(1.1 * base.mass_kg, rel=1e-6)
-    lag = perturb(kwargs, p["lag_x2"], "x")
-    assert lag["muscle"]["regulator"]["lag_s"] == 2 * kwargs["muscle"]["regulator"]["lag_s"]
-    assert perturb(kwargs, p["start_noise"], "x")["env"]["reset_noise_rad"] == 0.05
-    assert perturb(kwargs, p["nominal"], "x") == kwargs and kwargs["body"]["friction_static"] == 0.5  # no mutation
+    lag = spec.perturbed(p["lag_x2"], "x")
+    assert lag.muscle.regulator.lag_s == 2 * spec.muscle.regulator.lag_s
+    assert lag.body is spec.body and lag.env is spec.env  # the sections it leaves alone are shared
+    assert spec.perturbed(p["start_noise"], "x").env.reset_noise_rad == 0.05
+    assert spec.perturbed(p["nominal"], "x") == spec and spec.body.friction_static == 0.5  # no mutation
 
 
 def test_the_models_suite_puts_each_pneumatic_model_into_the_robot(tmp_path):
     """eval.suite=models: each of its perturbations builds the agent's robot with that model
     (the valve, the hysteresis elements, the Tondu-Lopez law, the toes), and it steps."""
     cfg = to_object(compose_config())
-    kwargs = env_kwargs(_agent(tmp_path, {}), cfg)
+    spec = agent_env(_agent(tmp_path, {}), cfg)
     assert cfg.eval.suites["models"] == ["nominal", "valve_flow", "hysteresis", "force_law", "toe"]
-    built = {name: PamWalkerEnv(**perturb(kwargs, cfg.eval.perturbations[name], name))
+    built = {name: spec.perturbed(cfg.eval.perturbations[name], name).make()
              for name in cfg.eval.suites["models"]}
     assert type(built["valve_flow"].drive.pairs.regulator).__name__ == "FlowRegulator"
     assert built["hysteresis"].muscle_cfg.spring.hysteresis == "maxwell_slip"
@@ -231,14 +228,14 @@ def test_the_models_suite_puts_each_pneumatic_model_into_the_robot(tmp_path):
     (Perturbation(scale={"muscle": {"size": 2.0}}), "p.scale.muscle.size"),
 ])
 def test_impossible_perturbations_name_the_key(spec, key):
-    kwargs = env_kwargs(_agent_free(), to_object(compose_config()))
+    env = agent_env(_agent_free(), to_object(compose_config()))
     with pytest.raises(ConfigError) as err:
-        perturb(kwargs, spec, "p")
+        env.perturbed(spec, "p")
     assert err.value.key == key
 
 
 def _agent_free():
-    class A:  # what env_kwargs reads of an agent with no stored config
+    class A:  # what agent_env reads of an agent with no stored config
         config = None
     return A()
 

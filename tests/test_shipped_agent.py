@@ -38,9 +38,8 @@ import numpy as np
 import pytest
 
 from pamrun.config import Perturbation, to_object
+from pamrun.evaluation.agents import load_agents
 from pamrun.evaluation.episodes import aggregate, evaluate_agents
-from pamrun.evaluation.evaluate import load_agents
-from pamrun.task.spec import perturb
 from tests.conftest import compose_config, run_pamrun
 
 AGENT = Path(__file__).parents[1] / "agents" / "walker_td3_seed0.pt"
@@ -63,11 +62,11 @@ def test_the_shipped_agent_walks_on_either_kernel(kernel, workers):
     """The other numeric paths: numba at 1 worker, the numpy reference kernel at 2 (the kernel
     set through a perturbation, the evaluation's own way of changing an agent's robot)."""
     cfg = to_object(compose_config())
-    agents, kwargs, errors = load_agents(str(AGENT), cfg)
+    agents, envs, errors = load_agents(str(AGENT), cfg)
     assert not errors
-    kw = perturb(kwargs[0], Perturbation(values={"muscle": {"kernel": kernel}}), "test")
-    assert kw["muscle"]["kernel"] == kernel
-    episodes = evaluate_agents(agents, [kw], EPISODES, SEED, workers)[0]
+    env = envs[0].perturbed(Perturbation(values={"muscle": {"kernel": kernel}}), "test")
+    assert env.muscle.kernel == kernel
+    episodes = evaluate_agents(agents, [env], EPISODES, SEED, workers)[0]
     check_walks(episodes, aggregate(episodes, cfg.eval))
 
 

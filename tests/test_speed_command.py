@@ -63,19 +63,19 @@ def test_impossible_speed_commands_fail_naming_the_key(override, key):
 def test_a_speed_commanded_agent_trains_with_mirroring_and_is_told_the_asked_speed(tmp_path):
     """A run with the command in its observation (mirrored transitions included) saves agents of
     that size; pamrun eval's loader gives each episode eval.speed_m_s, held, and runs them."""
+    from pamrun.evaluation.agents import load_agents
     from pamrun.evaluation.episodes import evaluate_agents
-    from pamrun.evaluation.evaluate import load_agents
 
     run = tmp_path / "run"
     assert train_here(run, *TINY, "train.max_frames=400", "train.eval_every_frames=0", "train.mirror=true",
                       "env.speed_command=true", f"env.speed_range_m_s=[{RANGE[0]},{RANGE[1]}]") == "max_frames"
     cfg = to_object(compose_config("eval.speed_m_s=0.8", "eval.episodes=2", "eval.episode_s=1",
                                    "eval.walk_duration_s=1"))
-    agents, kwargs, errors = load_agents(str(run / "checkpoints" / "last.pt"), cfg)
+    agents, envs, errors = load_agents(str(run / "checkpoints" / "last.pt"), cfg)
     assert not errors and agents[0].obs_size == 44
-    assert kwargs[0]["env"]["target_speed_m_s"] == 0.8 and kwargs[0]["env"]["speed_range_m_s"] == []
-    env = PamWalkerEnv(**kwargs[0])
+    assert envs[0].env.target_speed_m_s == 0.8 and envs[0].env.speed_range_m_s == []
+    env = envs[0].make()
     assert env.reset(seed=1000)[0][-1] == np.float32(0.8)
     env.close()
-    (episodes,) = evaluate_agents(agents, kwargs, 2, 1000, 1, keep_steps=False)
+    (episodes,) = evaluate_agents(agents, envs, 2, 1000, 1, keep_steps=False)
     assert len(episodes) == 2 and all(np.isfinite(e["distance_m"]) for e in episodes)

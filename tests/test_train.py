@@ -173,8 +173,8 @@ def test_evaluations_during_training(tmp_path):
 
 def test_evaluation_is_deterministic_and_matches_pamrun_eval(tmp_path, cfg):
     """The evaluator's numbers for an actor are pamrun eval's for the same agent file."""
-    from pamrun.evaluation.episodes import aggregate, env_kwargs, evaluate_agents
-    from pamrun.evaluation.evaluate import TrainingEvaluator
+    from pamrun.evaluation.episodes import agent_env, aggregate, evaluate_agents
+    from pamrun.evaluation.evaluator import TrainingEvaluator
     from pamrun.learning.checkpoints import agent_record, load_agent
     from pamrun.learning.networks import make_actor
 
@@ -187,7 +187,7 @@ def test_evaluation_is_deterministic_and_matches_pamrun_eval(tmp_path, cfg):
         {k: v for k, v in again.items() if k != "eval_s"})  # (NaN gait metrics included)
     torch.save(agent_record(actor.state_dict(), cfg, {}), tmp_path / "a.pt")
     agent = load_agent(tmp_path / "a.pt")
-    episodes = evaluate_agents([agent], [env_kwargs(agent, cfg)], 3, cfg.eval.selection_seed, workers=1)[0]
+    episodes = evaluate_agents([agent], [agent_env(agent, cfg)], 3, cfg.eval.selection_seed, workers=1)[0]
     reference = aggregate(episodes, cfg.eval)
     assert first["distance_mean"] == pytest.approx(reference["distance_mean"], abs=1e-6)
     assert first["duration_mean"] == pytest.approx(reference["duration_mean"])

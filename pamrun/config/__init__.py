@@ -23,7 +23,6 @@ from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 from pamrun.config.checks import CONF_DIR, ConfigError, _require
 from pamrun.config.experiments import (
     JOB_METRICS,
-    PERTURBABLE_SECTIONS,
     RANK_METRICS,
     EvalConfig,
     OptunaConfig,
@@ -49,14 +48,14 @@ from pamrun.config.robot import (
     check_muscle_stretch,
     check_toe_stiffness,
 )
-from pamrun.config.task import EnvConfig, RewardConfig
+from pamrun.config.task import ENV_SECTIONS, EnvConfig, RewardConfig
 
 __all__ = ["CONF_DIR", "SPRING_FILE", "JOB_METRICS", "RANK_METRICS", "FORCE_LAW_NAMES", "DYNAMICS_NAMES", "ConfigError",
            "Config", "LEG_JOINTS", "RegulatorConfig", "SpringConfig", "MuscleConfig", "JointAngles", "JointCounts",
            "JointRadii",
            "check_muscle_stretch", "check_toe_stiffness",
            "BodyConfig", "RewardConfig", "EnvConfig", "AlgoConfig", "TrainConfig", "EvalConfig",
-           "OptunaConfig", "Perturbation", "flatten", "PERTURBABLE_SECTIONS", "SweepConfig", "StepExperiment", "PairConfig", "register_configs", "validate", "to_object",
+           "OptunaConfig", "Perturbation", "flatten", "ENV_SECTIONS", "SweepConfig", "StepExperiment", "PairConfig", "register_configs", "validate", "to_object",
            "preset", "upgrade_saved_config", "as_config"]
 
 

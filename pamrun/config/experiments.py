@@ -8,15 +8,12 @@ from dataclasses import asdict, dataclass, field
 from typing import Any, Optional
 
 from pamrun.config.checks import ConfigError, _non_negative, _positive, _require
+from pamrun.config.task import ENV_SECTIONS
 
-# Aggregates an agent can be ranked by (``eval.rank_by``; pamrun/evaluation/evaluate.py computes them);
+# Aggregates an agent can be ranked by (``eval.rank_by``; pamrun.evaluation.episodes.aggregate computes them);
 # larger is better unless prefixed '-'.
 RANK_METRICS = ("walk_pass_rate", "walk_pass_ci_low", "stand_rate", "distance_mean", "distance_min", "return_mean", "duration_mean", "speed_mean",
                 "fall_rate", "max_abs_y_mean", "max_abs_y_max", "pressure_change_mean")
-
-
-# The sections of an agent's robot and task a perturbation may change (pamrun.learning.checkpoints.ENV_SECTIONS).
-PERTURBABLE_SECTIONS = ("body", "muscle", "reward", "env")
 
 
 @dataclass
@@ -38,8 +35,8 @@ class Perturbation:
     def __post_init__(self) -> None:
         for kind in ("scale", "values"):
             for section, keys in getattr(self, kind).items():
-                _require(section in PERTURBABLE_SECTIONS, f"{kind}.{section}",
-                         f"unknown section; a perturbation changes {', '.join(PERTURBABLE_SECTIONS)}")
+                _require(section in ENV_SECTIONS, f"{kind}.{section}",
+                         f"unknown section; a perturbation changes {', '.join(ENV_SECTIONS)}")
                 _require(isinstance(keys, dict) and len(keys) > 0, f"{kind}.{section}",
                          "must map keys of that section to values, e.g. {mass_kg: 1.1}")
         for dotted, factor in flatten(self.scale).items():

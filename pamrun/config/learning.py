@@ -85,7 +85,7 @@ class TrainConfig:
     # checkpoints/best_eval.pt (the best agent by eval.rank_by).
     eval_every_frames: int = 20_000  # evaluate the actor this often; 0 = never
     eval_episodes: int = 10  # episodes per evaluation (the walk test's 10)
-    # Selection under perturbation (pamrun/evaluation/evaluate.py, TrainingEvaluator): once an evaluation has a
+    # Selection under perturbation (pamrun/evaluation/evaluator.py, TrainingEvaluator): once an evaluation has a
     # nominal pass, it also runs select_episodes episodes under each of these eval.perturbations, and
     # best_eval.pt is the agent with the best walk pass rate over all of them. [] = nominal only.
     select_perturbations: list[str] = field(default_factory=list)  # e.g. [friction_low, lag_x2, push_forward]

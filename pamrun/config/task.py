@@ -7,6 +7,9 @@ from dataclasses import dataclass, field
 
 from pamrun.config.checks import _non_negative, _positive, _require
 
+# The config sections that make an agent's env, its robot (body, muscle) and its task (reward,
+# env): what an agent file stores (pamrun.task.spec.EnvSpec) and what a perturbation may change.
+ENV_SECTIONS = ("body", "muscle", "reward", "env")
 # --------------------------------------------------------------------------- task
 
 

@@ -1,8 +1,8 @@
 """Episodes of saved agents: the agent's env, perturbed or not, one deterministic episode
 with its per-step data and metrics, many episodes over worker processes, and what they add
 up to (the walk and stand tests, the pass count with its 95 % Wilson interval, means and
-spreads). Below :mod:`pamrun.evaluation.evaluate` (``pamrun eval``: ranking, files, figures, suites) and
-used by ``pamrun train``'s evaluations through it.
+spreads). Used by ``pamrun eval`` (:mod:`pamrun.evaluation.evaluate`) and by ``pamrun train``'s
+evaluations (:mod:`pamrun.evaluation.evaluator`).
 
 An episode's walk and stand tests are :mod:`pamrun.task.criteria`'s. Its gait and air metrics are :mod:`pamrun.evaluation.metrics`'s.
 """
@@ -14,21 +14,23 @@ import json
 import math
 import multiprocessing
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import asdict
 from typing import Any, Callable
 
 import numpy as np
 
 from pamrun.evaluation.metrics import GAIT_METRICS, GaitSpec, episode_metrics
-from pamrun.learning.checkpoints import ENV_SECTIONS, Agent
+from pamrun.learning.checkpoints import Agent
+from pamrun.physics.body import build_model
 from pamrun.task.criteria import stood, walk_passed
-from pamrun.task.spec import SECTION_TYPES
+from pamrun.task.spec import EnvSpec, eval_env_options
 
 # --------------------------------------------------------------------------- the agent's env
 
 
 def make_policy(agent: Agent):
     """The agent's actor as a function observation -> action (no exploration noise)."""
+    # torch and TorchRL (pamrun.learning.networks) are imported where a policy runs: pamrun eval
+    # imports this module before it checks its config, and a config error need not wait seconds for them.
     import torch
 
     from pamrun.learning import networks as agents_mod
@@ -43,23 +45,12 @@ def make_policy(agent: Agent):
     return policy
 
 
-def env_kwargs(agent: Agent, cfg) -> dict[str, dict]:
-    """Keyword arguments of PamWalkerEnv for ``agent``: its own robot and task (or the command
-    line's), with the evaluation's start noise and episode length. Validated here."""
-    from pamrun.task.env import as_config
-
-    own = agent.config if (cfg.eval.use_agent_env and agent.config) else {}
-    sections = {k: dict(own.get(k) or asdict(getattr(cfg, k))) for k in ENV_SECTIONS}
-    sections["env"].update(eval_env_options(cfg.eval))
-    return {k: asdict(as_config(v, SECTION_TYPES[k])) for k, v in sections.items()}
-
-
-def eval_env_options(ecfg) -> dict:
-    """What the evaluation sets of every agent's task: its start noise, episode length and a
-    commanded speed held for the episode (``eval.speed_m_s``, else the agent's own v*)."""
-    speed = {} if ecfg.speed_m_s is None else {"target_speed_m_s": ecfg.speed_m_s}
-    return {"reset_noise_rad": ecfg.reset_noise_rad, "reset_velocity_noise": ecfg.reset_velocity_noise,
-            "episode_s": ecfg.episode_s, "speed_range_m_s": [], **speed}
+def agent_env(agent: Agent, cfg) -> EnvSpec:
+    """The env ``agent`` is evaluated in: its own robot and task (with ``eval.use_agent_env``;
+    a section it did not store, or all without, the command line's), with the evaluation's
+    start noise, episode length and held commanded speed. Validated here."""
+    own = agent.config if cfg.eval.use_agent_env else None
+    return EnvSpec.from_dict(own, base=EnvSpec.from_config(cfg), env=eval_env_options(cfg.eval))
 
 
 # What run_episode records per control step (pamrun.evaluation.metrics reads them): torso position, joint
@@ -69,15 +60,10 @@ STEP_KEYS = ("x_m", "y_m", "z_m", "joint_angle_rad", "joint_velocity_rad_s", "jo
              "contraction_pct", "foot_force_n", "sole_xyz_m", "action")
 
 
-def gait_spec(kwargs: dict) -> GaitSpec:
-    """The gait metrics' view of the robot that ``kwargs`` (PamWalkerEnv's) builds: its mass
-    from the compiled body, no env."""
-    from pamrun.config import as_config  # local: module imports left to the change of the rest of this file
-    from pamrun.physics.body import build_model
-
-    body, muscle, env = (as_config(kwargs.get(k), SECTION_TYPES[k]) for k in ("body", "muscle", "env"))
-    mass_kg = float(build_model(body, timestep_s=env.physics_dt_s).body_subtreemass[0])
-    return GaitSpec.from_configs(body, muscle, mass_kg, env.control_dt_s)
+def gait_spec(spec: EnvSpec) -> GaitSpec:
+    """The gait metrics' view of the robot ``spec`` builds: its mass from the compiled body, no env."""
+    mass_kg = float(build_model(spec.body, timestep_s=spec.env.physics_dt_s).body_subtreemass[0])
+    return GaitSpec.from_configs(spec.body, spec.muscle, mass_kg, spec.env.control_dt_s)
 
 
 def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = None,
@@ -139,28 +125,27 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
 _WORKER: dict[str, Any] = {}
 
 
-def _init_worker(agents: list[Agent], kwargs: list[dict], seed: int, keep_steps: bool = True) -> None:
+def _init_worker(agents: list[Agent], specs: list[EnvSpec], seed: int, keep_steps: bool = True) -> None:
     """Per process: one thread for torch (identical results at any worker count), policies, envs."""
-    import torch
+    import torch  # (as in make_policy)
 
     torch.set_num_threads(1)
-    _WORKER.update(policies=[make_policy(a) for a in agents], kwargs=kwargs, seed=seed, envs={}, keep_steps=keep_steps)
+    _WORKER.update(policies=[make_policy(a) for a in agents], specs=specs, seed=seed, envs={}, keep_steps=keep_steps)
 
 
 def _run_task(task: tuple[int, int]) -> tuple[int, int, dict]:
-    from pamrun.task.env import PamWalkerEnv
-
     i, k = task
-    key = json.dumps(_WORKER["kwargs"][i], sort_keys=True)
+    spec = _WORKER["specs"][i]
+    key = json.dumps(spec.to_dict(), sort_keys=True)  # agents of the same robot and task share an env
     if key not in _WORKER["envs"]:
-        _WORKER["envs"][key] = PamWalkerEnv(**_WORKER["kwargs"][i])
+        _WORKER["envs"][key] = spec.make()
     return i, k, run_episode(_WORKER["policies"][i], _WORKER["envs"][key], _WORKER["seed"] + k,
                              keep_steps=_WORKER["keep_steps"])
 
 
 @contextlib.contextmanager
 def torch_threads(n: int):
-    import torch
+    import torch  # (as in make_policy)
 
     before = torch.get_num_threads()
     torch.set_num_threads(n)
@@ -170,17 +155,17 @@ def torch_threads(n: int):
         torch.set_num_threads(before)
 
 
-def evaluate_agents(agents: list[Agent], kwargs: list[dict], episodes: int, seed: int, workers: int,
+def evaluate_agents(agents: list[Agent], specs: list[EnvSpec], episodes: int, seed: int, workers: int,
                     on_episode: Callable[[], None] | None = None, keep_steps: bool = True) -> list[list[dict]]:
-    """Episode results per agent, ``[agent][episode]``, the same for any number of workers
-    (``keep_steps=False``: metrics only, no per-step lists)."""
+    """Episode results per agent, ``[agent][episode]``, each in its env ``specs[agent]``, the same
+    for any number of workers (``keep_steps=False``: metrics only, no per-step lists)."""
     import pamrun.learning.networks  # noqa: F401  (torch and TorchRL imported once here, inherited by forked workers)
 
     tasks = [(i, k) for i in range(len(agents)) for k in range(episodes)]
     results: list[list[dict | None]] = [[None] * episodes for _ in agents]
     if workers <= 1:
         with torch_threads(1):
-            _init_worker(agents, kwargs, seed, keep_steps)
+            _init_worker(agents, specs, seed, keep_steps)
             try:
                 for task in tasks:
                     i, k, res = _run_task(task)
@@ -195,7 +180,7 @@ def evaluate_agents(agents: list[Agent], kwargs: list[dict], episodes: int, seed
     # fork: workers start in milliseconds and inherit the loaded agents (spawn where fork is absent).
     method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
     pool = ProcessPoolExecutor(min(workers, len(tasks)), mp_context=multiprocessing.get_context(method),
-                               initializer=_init_worker, initargs=(agents, kwargs, seed, keep_steps))
+                               initializer=_init_worker, initargs=(agents, specs, seed, keep_steps))
     try:
         for future in as_completed([pool.submit(_run_task, t) for t in tasks]):
             i, k, res = future.result()

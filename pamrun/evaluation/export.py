@@ -44,12 +44,12 @@ from typing import Any
 import torch
 
 import pamrun
-from pamrun.config import ConfigError, EnvConfig, MuscleConfig, to_object
+from pamrun.config import ConfigError, EnvConfig, MuscleConfig, as_config, to_object
 from pamrun.learning.checkpoints import Agent, CheckpointError, load_agent
 from pamrun.learning.networks import ThesisActor
 from pamrun.physics.body import JOINTS
 from pamrun.runs.files import atomic_write, run_dir, write_json
-from pamrun.task.env import OBSERVATION_UNITS, as_config, observation_structure
+from pamrun.task.observation import OBSERVATION_UNITS, observation_structure
 
 FILE_NAMES = {"onnx": "actor.onnx", "torchscript": "actor.pt"}
 METADATA_KEY = "pamrun"  # ONNX metadata_props key

@@ -1,6 +1,6 @@
 """Gait and air metrics of one episode, from its per-step arrays (no simulator needed).
 
-An episode's ``steps`` (see ``pamrun.evaluation.evaluate.run_episode``) holds one row per control step:
+An episode's ``steps`` (see ``pamrun.evaluation.episodes.run_episode``) holds one row per control step:
 ``t_s``, torso ``x_m``, ``joint_angle_rad`` / ``joint_velocity_rad_s`` / ``joint_torque_nm``
 (n, 10) in ``pamrun.physics.body.JOINTS`` order, ``pressure_kpa`` / ``contraction_pct`` (n, 20),
 ``foot_force_n`` (n, 2) and ``sole_xyz_m`` (n, 2, 4, 3), the centres of each foot's four

@@ -23,6 +23,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from pamrun.config import upgrade_saved_config
 from pamrun.runs.directory import (  # noqa: F401 (its names)
     AGENT_GLOB,
     BEST_EVAL,
@@ -31,10 +32,10 @@ from pamrun.runs.directory import (  # noqa: F401 (its names)
     RunFiles,
     saved_config,
 )
+from pamrun.runs.files import atomic_save
+from pamrun.task.spec import EnvSpec
 
 FORMAT = "pamrun-agent/1"
-# The config sections that define the robot and the task an agent acts in.
-ENV_SECTIONS = ("body", "muscle", "reward", "env")
 
 
 class CheckpointError(Exception):
@@ -54,7 +55,7 @@ class Agent:
     actor_state: dict[str, Any]  # state_dict of pamrun.learning.networks.ThesisActor
     hidden_sizes: list[int]
     meta: dict[str, Any]  # training episode, frames, reward, ... at the time of saving
-    config: dict[str, dict] | None  # ENV_SECTIONS as plain dicts, None if unknown
+    config: dict[str, dict] | None  # its env as stored (pamrun.task.spec.EnvSpec.to_dict()), None if unknown
     algo: dict[str, Any] | None = None
     obs_size: int = 43  # the actor's input and output sizes
     action_size: int = 10
@@ -72,7 +73,7 @@ def agent_record(actor_state: dict, cfg, meta: dict) -> dict:
         "actor": actor_state,
         "meta": dict(meta),
         "algo": asdict(cfg.algo),
-        "config": {k: asdict(getattr(cfg, k)) for k in ENV_SECTIONS},
+        "config": EnvSpec.from_config(cfg).to_dict(),
     }
 
 
@@ -114,7 +115,7 @@ def _in_directory(path: Path, include_last: bool) -> list[Path]:
 
 def load_agent(path: str | Path, obs_size: int | None = None, action_size: int | None = None) -> Agent:
     """Read an agent without executing code; check it fits an env with these sizes (if given)."""
-    import torch
+    import torch  # here, not at the top: finding and naming checkpoints does not wait for torch (seconds)
 
     path = Path(path)
     try:
@@ -145,8 +146,6 @@ def load_agent(path: str | Path, obs_size: int | None = None, action_size: int |
     if "counters" in data:  # last.pt
         meta.setdefault("frames", data["counters"].get("frames"))
         meta.setdefault("episode", data["counters"].get("episodes"))
-    from pamrun.config import upgrade_saved_config
-
     config = data.get("config")
     if config is None:
         config = _run_config(path)
@@ -171,20 +170,17 @@ def check_fits(agent: Agent, obs_size: int, action_size: int) -> None:
 
 def save_agent_copy(agent: Agent, path: Path, **extra_meta) -> Path:
     """Write ``agent`` as a stand-alone agent file (e.g. an evaluation's ``best.pt``), atomically."""
-    from pamrun.runs.files import atomic_save
-
     record = {"format": FORMAT, "actor": agent.actor_state, "meta": {**agent.meta, **extra_meta},
               "algo": agent.algo, "config": agent.config}
     return atomic_save(record, path)
 
 
 def _run_config(path: Path) -> dict[str, dict] | None:
-    """ENV_SECTIONS of the run a checkpoint sits in (``<run>/pamrun_config.yaml``), if there."""
+    """The env (EnvSpec.to_dict()) of the run a checkpoint sits in (``<run>/pamrun_config.yaml``), if there."""
     run = path.parent.parent
     if path.parent.name != CHECKPOINTS or not RunFiles(run).config.exists():
         return None
-    cfg = saved_config(run)
-    return {k: asdict(getattr(cfg, k)) for k in ENV_SECTIONS}
+    return EnvSpec.from_config(saved_config(run)).to_dict()
 
 
 def label_of(path: Path) -> str:
@@ -208,8 +204,6 @@ def unique_labels(agents: list[Agent]) -> None:
 
 def save_agent_record(path: Path, actor_state: dict, cfg, meta: dict) -> Path:
     """Write an agent file (weights, ``meta``, the run's algo and env config), atomically."""
-    from pamrun.runs.files import atomic_save
-
     return atomic_save(agent_record(actor_state, cfg, meta), path)
 
 

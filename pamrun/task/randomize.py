@@ -9,7 +9,7 @@ proportion to their weights (1 for a name it leaves out; drawn without replaceme
 of weight w among n of weight 1 comes first with chance w / (w + n)), each at its own
 strength s drawn uniformly in [0, ``train.randomize_reach``] (or the name's own
 ``train.randomize_reaches``) of the way from the run's own config to it
-(:func:`pamrun.task.spec.perturb`: a factor f becomes 1 + s (f - 1); s > 1 goes beyond the
+(:meth:`pamrun.task.spec.EnvSpec.perturbed`: a factor f becomes 1 + s (f - 1); s > 1 goes beyond the
 suite's size, for a margin). Factors compose (mass x1.1 and x0.9 both drawn: their product);
 two perturbations that set the same value (the pushes) are never drawn together. A push comes at a time drawn uniformly between 1 s
 and 1 s before the episode's end, so a policy cannot learn when it comes. Otherwise the
@@ -29,7 +29,7 @@ import numpy as np
 
 from pamrun.config import Config, ConfigError, flatten
 from pamrun.task.env import PamWalkerEnv
-from pamrun.task.spec import perturb
+from pamrun.task.spec import EnvSpec
 
 PUSH_MARGIN_S = 1.0  # a randomised push starts at least this long after the start and before the end
 
@@ -39,34 +39,33 @@ class RandomizedWalker(gym.Env):
 
     metadata = PamWalkerEnv.metadata
 
-    def __init__(self, kwargs: dict[str, dict], perturbations: dict[str, Any], prob: float, reach: float,
-                 count: int = 1, weights: dict[str, float] | None = None, reaches: dict[str, float] | None = None):
-        self.kwargs, self.perturbations, self.prob, self.count = kwargs, perturbations, prob, count
+    def __init__(self, spec: EnvSpec, perturbations: dict[str, Any], prob: float, reach: float,
+                 count: int = 1, weights: dict[str, float] | None = None, reaches: dict[str, float] | None = None,
+                 features: tuple[str, ...] = ()):
+        self.features = tuple(features)  # reward terms computed at any weight (PamWalkerEnv's ``features``)
+        self.nominal_spec, self.perturbations, self.prob, self.count = spec, perturbations, prob, count
         self.reach = {n: (reaches or {}).get(n, reach) for n in perturbations}  # each name's reach
         self.names = sorted(perturbations)
         w = np.array([(weights or {}).get(n, 1.0) for n in self.names])
         self.p = w / w.sum() if weights else None  # draw probabilities in names order (None: uniform)
-        self.nominal = self.env = PamWalkerEnv(**kwargs)
-        nominal = self.nominal  # its validated sections, reused for the sections a draw leaves alone
-        self.typed = {"body": nominal.body_cfg, "muscle": nominal.muscle_cfg, "reward": nominal.reward_cfg,
-                      "env": nominal.env_cfg}
+        self.nominal = self.env = spec.make(features=self.features)
         self.action_space, self.observation_space = self.env.action_space, self.env.observation_space
         self.drawn: tuple[tuple[str, float], ...] = ()  # this episode's perturbations and strengths
 
     @classmethod
-    def from_config(cls, kwargs: dict[str, dict], cfg: Config) -> RandomizedWalker:
-        """The env ``cfg.train``'s randomisation settings describe, around the env keyword arguments ``kwargs``."""
+    def from_config(cls, spec: EnvSpec, cfg: Config, features: tuple[str, ...] = ()) -> RandomizedWalker:
+        """The env ``cfg.train``'s randomisation settings describe, around the robot and task ``spec``."""
         t = cfg.train
-        return cls(kwargs, {n: cfg.eval.perturbations[n] for n in t.randomize}, t.randomize_prob, t.randomize_reach,
-                   t.randomize_count, t.randomize_weights, t.randomize_reaches)
+        return cls(spec, {n: cfg.eval.perturbations[n] for n in t.randomize}, t.randomize_prob, t.randomize_reach,
+                   t.randomize_count, t.randomize_weights, t.randomize_reaches, features)
 
-    def draw(self) -> dict[str, dict]:
-        """This episode's env keyword arguments (and ``self.drawn``)."""
+    def draw(self) -> EnvSpec:
+        """This episode's robot and task (and ``self.drawn``)."""
         rng = self.np_random
         self.drawn = ()
         if not self.names or rng.random() >= self.prob:
-            return self.kwargs
-        kwargs, taken = self.kwargs, set()
+            return self.nominal_spec
+        spec, taken = self.nominal_spec, set()
         n = len(self.names)
         order = rng.permutation(n) if self.p is None else rng.choice(n, size=n, replace=False, p=self.p)
         for k in order.tolist():
@@ -75,19 +74,20 @@ class RandomizedWalker(gym.Env):
             if len(self.drawn) == self.count or sets & taken:
                 continue
             strength = float(rng.uniform(0.0, self.reach[name]))
-            kwargs = perturb(kwargs, self.perturbations[name], f"train.randomize.{name}", strength)
+            spec = spec.perturbed(self.perturbations[name], f"train.randomize.{name}", strength)
             self.drawn, taken = (*self.drawn, (name, strength)), taken | sets
-        env = kwargs["env"]
-        if any(env["push_impulse_ns"]):
-            latest = env["episode_s"] - PUSH_MARGIN_S - env["push_duration_s"]
-            env["push_time_s"] = float(rng.uniform(PUSH_MARGIN_S, max(PUSH_MARGIN_S, latest)))
-        return kwargs
+        env = spec.env
+        if any(env.push_impulse_ns):  # drawn whenever the task pushes; it applies where a draw changed the task
+            latest = env.episode_s - PUSH_MARGIN_S - env.push_duration_s
+            push_time_s = float(rng.uniform(PUSH_MARGIN_S, max(PUSH_MARGIN_S, latest)))
+            if env is not self.nominal_spec.env:
+                spec = spec.with_values(env={"push_time_s": push_time_s})
+        return spec
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        kwargs = self.draw()
-        new = self.nominal if kwargs is self.kwargs else PamWalkerEnv(**{
-            k: self.typed.get(k, v) if v is self.kwargs[k] else v for k, v in kwargs.items()})
+        spec = self.draw()
+        new = self.nominal if spec is self.nominal_spec else spec.make(features=self.features)
         if self.env is not self.nominal and self.env is not new:
             self.env.close()
         self.env = new
@@ -107,15 +107,12 @@ def check(cfg: Config) -> None:
     full reach too (friction x0.7 at reach 4 would be negative): a ConfigError naming the key
     otherwise, before the run writes anything (its names are checked against
     ``eval.perturbations`` with the config)."""
-    from dataclasses import asdict
-
-    kwargs = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}
-    t = cfg.train
+    spec, t = EnvSpec.from_config(cfg), cfg.train
     for name in t.randomize:
-        perturb(kwargs, cfg.eval.perturbations[name], f"eval.perturbations.{name}")
+        spec.perturbed(cfg.eval.perturbations[name], f"eval.perturbations.{name}")
         reach = t.randomize_reaches.get(name, t.randomize_reach)
         try:
-            perturb(kwargs, cfg.eval.perturbations[name], f"eval.perturbations.{name}", reach)
+            spec.perturbed(cfg.eval.perturbations[name], f"eval.perturbations.{name}", reach)
         except ConfigError as e:
             key = f"train.randomize_reaches.{name}" if name in t.randomize_reaches else "train.randomize_reach"
             raise ConfigError(key, f"{name} at strength {reach:g} is impossible: {e}") from None

@@ -18,7 +18,6 @@ import functools
 import math
 import random
 import time
-from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +32,7 @@ from pamrun.runs.directory import EVAL_FIELDS, CsvLog, EpisodeLog, RunFiles
 from pamrun.runs.files import Progress
 from pamrun.runs.machine import Terminated, stop_signals, usable_cores
 from pamrun.task import randomize
+from pamrun.task.spec import EnvSpec
 from pamrun.task.symmetry import mirror_batch
 from pamrun.training.console import end_of_run, header_table, summary_table
 
@@ -52,12 +52,11 @@ def make_env(cfg: Config, seed: int | None = None):
 
     import pamrun  # noqa: F401  (registers the env in worker processes too)
 
-    kwargs, t = {k: asdict(getattr(cfg, k)) for k in ("body", "muscle", "reward", "env")}, cfg.train
-    kwargs["features"] = reweighted_terms(cfg)  # the curriculum's terms, computed at any weight
-    env = GymWrapper(randomize.RandomizedWalker.from_config(kwargs, cfg) if t.randomize
-                     else gym.make("pamrun/PamWalker-v0", **kwargs))
-    spec = {"distance": Unbounded((), dtype=torch.float64), "physics_error": Unbounded((), dtype=torch.bool)}
-    env.set_info_dict_reader(default_info_dict_reader(list(spec), spec=spec))
+    spec, t, features = EnvSpec.from_config(cfg), cfg.train, reweighted_terms(cfg)  # the curriculum's terms
+    env = GymWrapper(randomize.RandomizedWalker.from_config(spec, cfg, features) if t.randomize
+                     else gym.make("pamrun/PamWalker-v0", **spec.sections(), features=features))
+    info = {"distance": Unbounded((), dtype=torch.float64), "physics_error": Unbounded((), dtype=torch.bool)}
+    env.set_info_dict_reader(default_info_dict_reader(list(info), spec=info))
     env.set_info_dict_reader(FeatureReader())  # the reward's terms by key, for the curriculum
     if seed is not None:
         env.set_seed(seed)
@@ -91,7 +90,7 @@ def make_collector(cfg: Config, policy, total_frames: int, start_random: int, se
 
 
 def make_learner(cfg: Config) -> networks.Learner:
-    from pamrun.task.env import space_sizes
+    from pamrun.task.observation import space_sizes
 
     probe = make_env(cfg)  # the env's action spec, as TorchRL sees it (the losses and exploration need it)
     spec = probe.action_spec_unbatched
@@ -286,7 +285,7 @@ class Evaluations:
     its evaluation is stored in it, so a resumed run keeps comparing against it."""
 
     def __init__(self, cfg: Config, out: Path, writer):
-        from pamrun.evaluation.evaluate import TrainingEvaluator
+        from pamrun.evaluation.evaluator import TrainingEvaluator
 
         self.best_path = RunFiles(out).best_eval
         self.evaluator = TrainingEvaluator(cfg)

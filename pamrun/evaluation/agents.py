@@ -1,0 +1,80 @@
+"""The agents an evaluation names, loaded with the env each is evaluated in, and their episodes
+run over ``eval.workers`` processes with a progress display."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+from omegaconf.errors import OmegaConfBaseException
+
+from pamrun.config import ConfigError
+from pamrun.evaluation.episodes import agent_env, evaluate_agents
+from pamrun.learning.checkpoints import Agent, CheckpointError, check_fits, find_checkpoints, load_agent, unique_labels
+from pamrun.runs.files import Progress
+from pamrun.runs.files import console as make_console
+from pamrun.runs.machine import usable_cores
+from pamrun.task.observation import space_sizes
+from pamrun.task.spec import EnvSpec
+
+
+def load_agents(spec: str, cfg) -> tuple[list[Agent], list[EnvSpec], list[dict]]:
+    """Agents named by ``spec`` with the env each is evaluated in, and one error row per unusable file."""
+    loaded, envs, errors = [], [], []
+    for path in find_checkpoints(spec, cfg.eval.include_last):
+        try:
+            agent = load_agent(path)
+            env = agent_env(agent, cfg)
+            check_fits(agent, *space_sizes(env.muscle, env.env))
+        except CheckpointError as err:
+            errors.append({"path": err.path, "error": err.message})
+            continue
+        except (ConfigError, ValueError, OmegaConfBaseException) as err:
+            errors.append({"path": str(path), "error": f"its stored config is not valid here: {err}".splitlines()[0]})
+            continue
+        loaded.append(agent)
+        envs.append(env)
+    unique_labels(loaded)
+    return loaded, envs, errors
+
+
+def start(cfg, spec: str, out: Path) -> tuple[Any, list[Agent], list[EnvSpec], list[dict]]:
+    """A console, ``out`` made, and the usable agents of ``spec`` with their envs and the
+    unusable files (named on the console); exits when none is usable."""
+    console = make_console()
+    out.mkdir(parents=True, exist_ok=True)
+    agents, envs, errors = load_agents(spec, cfg)
+    for err in errors:
+        console.print(f"[red]skipped[/red] {err['path']}: {err['error']}", soft_wrap=True)
+    if not agents:
+        raise SystemExit(f"pamrun: no usable checkpoint in {spec} ({len(errors)} unreadable; see above)")
+    return console, agents, envs, errors
+
+
+def run_all(agents: list[Agent], envs: list[EnvSpec], ecfg, console, what: str = "agent(s)", keep_steps: bool = True
+            ) -> tuple[list[list[dict]], int, float]:
+    """Every agent's episodes in its env, on ``eval.workers`` processes with a progress display."""
+    workers = min(ecfg.workers or usable_cores(), len(agents) * ecfg.episodes)
+    # torch and TorchRL, imported before the clock starts (here, not at the top: pamrun eval imports
+    # this module before it checks its config, and a config error need not wait seconds for them)
+    import pamrun.learning.networks  # noqa: F401
+
+    console.print(f"Evaluating {len(agents)} {what} x {ecfg.episodes} episode(s), seeds {ecfg.seed}.."
+                  f"{ecfg.seed + ecfg.episodes - 1}, on {workers} worker(s)")
+    start = time.perf_counter()
+    progress = Progress(console, len(agents) * ecfg.episodes, 0, unit="episodes")
+    done = [0]
+
+    def tick() -> None:
+        done[0] += 1
+        progress.update(done[0], f"of {len(agents) * ecfg.episodes}")
+
+    try:
+        results = evaluate_agents(agents, envs, ecfg.episodes, ecfg.seed, workers, on_episode=tick,
+                                  keep_steps=keep_steps)
+    except KeyboardInterrupt:
+        raise SystemExit("pamrun: evaluation interrupted; no results written (checkpoints are untouched)") from None
+    finally:
+        progress.stop()
+    return results, workers, time.perf_counter() - start
