@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import platform
 import statistics
@@ -47,25 +46,13 @@ SAC = {"name": "sac", "target_smoothing": 0.005, "actor_lr": 3e-4, "critic_lr": 
 RESULTS = Path(__file__).parent / "results" / "agent_update.jsonl"
 
 
-def _hand_written_tanh_gaussian(actor, obs):
-    """The baseline SAC sample, before TorchRL's TanhNormal: u = mean + std * noise, a = tanh(u),
-    log N(u; mean, std) - log(1 - tanh(u)^2) in softplus form, summed per action."""
-    h = actor.net[:4](obs)
-    mean = actor.net[4](h)
-    log_std = actor.log_std_head(h).clamp(*actor.LOG_STD_RANGE)
-    u = mean + log_std.exp() * torch.randn_like(mean)
-    log_prob = (-0.5 * ((u - mean) / log_std.exp()) ** 2 - log_std - 0.5 * math.log(2 * math.pi)
-                - 2.0 * (math.log(2.0) - u - torch.nn.functional.softplus(-2.0 * u)))
-    return torch.tanh(u), log_prob.sum(-1, keepdim=True)
-
-
 def _learner(algo: dict, baseline: bool, seed: int = 0) -> networks.Learner:
     """A learner of ``algo``; ``baseline``: with the private/hand-written part it replaced."""
     torch.manual_seed(seed)
     learner = networks.make_learner(AlgoConfig(**algo), OBS, ACT, _spec())
     if baseline and algo["name"] == "sac":
         actor = learner.actor.module
-        actor.sample = lambda obs: _hand_written_tanh_gaussian(actor, obs)
+        actor.sample = actor.sample_by_hand
     elif baseline:
         learner.soft_update = lambda: _foreach_soft_update(learner)
     return learner
@@ -128,7 +115,7 @@ def sample_equality() -> dict:
         torch.manual_seed(1)
         action, log_prob = actor.sample(obs)
         torch.manual_seed(1)
-        ref_action, ref_log_prob = _hand_written_tanh_gaussian(actor, obs)
+        ref_action, ref_log_prob = actor.sample_by_hand(obs)
     diff = (log_prob - ref_log_prob).abs()
     return {"samples": obs.shape[0], "saturated_share": round(float((ref_action.abs() == 1).float().mean()), 3),
             "actions_bitwise_equal": torch.equal(action, ref_action),

@@ -267,14 +267,16 @@ def print_valve_table(results: dict) -> None:
     console.print(table)
 
 
+def report(out, name: str, results: dict, draw, print_table) -> None:
+    """A bench experiment's results as ``<name>.json`` and its figure ``<name>.png`` in ``out``, and its table."""
+    figures.record(out, name, results, draw)
+    print_table(results)
+    console.print(f"Wrote {name}.json, {name}.png")
+
+
 def muscle_valve(dcfg: DictConfig) -> None:
     """``pamrun muscle valve``: regulator step 0 -> 600 kPa, lag vs flow -> valve_step.json/.png."""
-    cfg: Config = to_object(dcfg)
-    out = run_dir()
-    results = valve_step_responses(cfg.muscle)
-    figures.record(out, "valve_step", results, figures.valve_step)
-    print_valve_table(results)
-    console.print("Wrote valve_step.json, valve_step.png")
+    report(run_dir(), "valve_step", valve_step_responses(to_object(dcfg).muscle), figures.valve_step, print_valve_table)
 
 
 # --------------------------------------------------------------------------- hysteresis
@@ -295,9 +297,5 @@ def print_hysteresis_table(results: dict) -> None:
 def muscle_hysteresis(dcfg: DictConfig) -> None:
     """``pamrun muscle hysteresis``: one muscle cycled at constant pressure, force vs contraction
     with and without the Maxwell-slip elements -> hysteresis_loop.json/.png (loop areas [J])."""
-    cfg: Config = to_object(dcfg)
-    out = run_dir()
-    results = hysteresis_loop(cfg.muscle)
-    figures.record(out, "hysteresis_loop", results, figures.hysteresis_loop)
-    print_hysteresis_table(results)
-    console.print("Wrote hysteresis_loop.json, hysteresis_loop.png")
+    report(run_dir(), "hysteresis_loop", hysteresis_loop(to_object(dcfg).muscle), figures.hysteresis_loop,
+           print_hysteresis_table)

@@ -74,6 +74,18 @@ class SquashedGaussianActor(ThesisActor):
         action, log_prob = dist.rsample_and_log_prob()  # SAC updates ~5-9 % slower than by hand (benchmarks/)
         return action, log_prob.unsqueeze(-1)
 
+    def sample_by_hand(self, observation: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """:meth:`sample` written out, the reference it is tested and benchmarked against:
+        u = mean + std * noise, a = tanh(u), log N(u; mean, std) - log(1 - tanh(u)^2) in softplus
+        form, summed per action. Same actions from the same generator state."""
+        h = self.net[:4](observation)
+        mean = self.net[4](h)
+        log_std = self.log_std_head(h).clamp(*self.LOG_STD_RANGE)
+        u = mean + log_std.exp() * torch.randn_like(mean)
+        log_prob = (-0.5 * ((u - mean) / log_std.exp()) ** 2 - log_std - 0.5 * math.log(2 * math.pi)
+                    - 2.0 * (math.log(2.0) - u - nn.functional.softplus(-2.0 * u)))
+        return torch.tanh(u), log_prob.sum(-1, keepdim=True)
+
 
 class _Sampler(nn.Module):
     """The collector's SAC policy: an action sampled from the actor's distribution."""
