@@ -46,7 +46,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "sweep": ("pamrun.sweep.grid", "job", "trainings over a grid (-m a=1,2 b=x,y), each evaluated, summary at the end"),
     "sweep summarize": ("pamrun.sweep.grid", "summarize_command", "summary table and curves of a sweep: dir=<sweep dir>"),
     "sweep optuna": ("pamrun.sweep.search", "optuna_search", "Optuna search, each trial averaged over seeds (sweep.optuna)"),
-    "plot training": ("pamrun.training.recipe", "plot_training", "redraw training.png of a run: dir=<run dir>"),
+    "plot training": ("pamrun.training.console", "plot_training", "redraw training.png of a run: dir=<run dir>"),
 }
 # Commands composed from another primary config than conf/config.yaml.
 CONFIG_NAMES = {"sweep": "config_sweep"}

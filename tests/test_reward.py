@@ -121,7 +121,8 @@ def test_a_checkpoint_with_the_terms_as_one_array_resumes(tmp_path):
     from tensordict import TensorDict
     from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
-    from pamrun.learning.checkpoints import ARRAY_TERMS, LAST, file_fingerprints
+    from pamrun.learning.checkpoints import ARRAY_TERMS, file_fingerprints
+    from pamrun.runs.directory import LAST
     from pamrun.learning.curriculum import FEATURES
     from pamrun.runs.directory import saved_config
 

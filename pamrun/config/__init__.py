@@ -17,6 +17,7 @@ import dataclasses
 from dataclasses import asdict, dataclass, field, is_dataclass
 from typing import Any
 
+import yaml
 from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
@@ -146,7 +147,6 @@ def preset(group: str, name: str) -> dict:
     """What ``conf/<group>/<name>.yaml`` sets, as a dict for e.g. ``PamWalkerEnv(muscle=...)``.
 
     Its Hydra defaults list is left out (the dataclass defaults equal those sub-presets)."""
-    import yaml
 
     path = CONF_DIR / group / f"{name}.yaml"
     if not path.is_file():

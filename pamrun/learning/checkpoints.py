@@ -12,19 +12,28 @@ A training's checkpoint directory holds its threshold-saved agents (:func:`save_
 the best ``train.keep_saved`` kept) and its resume state (:func:`save_last`,
 :func:`load_last`): ``last.pt`` with the learner, counters and RNG states, and the replay
 buffer in ``buffer/``.
+
+torch is imported inside the functions that read or write tensors: finding, naming and checking
+checkpoints (``pamrun eval``'s config check) does not wait seconds for it.
 """
 
 from __future__ import annotations
 
 import glob
 import pickle
+import random
+import shutil
 import warnings
+import zlib
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from pamrun.config import upgrade_saved_config
-from pamrun.runs.directory import (  # noqa: F401 (its names)
+from pamrun.learning.curriculum import FEATURES
+from pamrun.runs.directory import (
     AGENT_GLOB,
     BEST_EVAL,
     CHECKPOINTS,
@@ -33,6 +42,7 @@ from pamrun.runs.directory import (  # noqa: F401 (its names)
     saved_config,
 )
 from pamrun.runs.files import atomic_save
+from pamrun.task.reward import REWARD_KEYS
 from pamrun.task.spec import EnvSpec
 
 FORMAT = "pamrun-agent/1"
@@ -222,7 +232,7 @@ def save_agent(ckpt_dir: Path, actor_state: dict, row: dict, cfg, saved: list, k
 
 def scan_saved(ckpt_dir: Path) -> list[tuple[float, Path]]:
     """Threshold-saved agents already on disk, best first."""
-    import torch
+    import torch  # heavy: imported where a tensor is read or written (module docstring)
 
     found = [(torch.load(p, weights_only=True)["meta"]["reward"], p) for p in ckpt_dir.glob(AGENT_GLOB)]
     return sorted(found, key=lambda t: -t[0])
@@ -243,9 +253,7 @@ def save_last(ckpt_dir: Path, cfg, learner, buffer, counters: dict) -> None:
     buffer's length; then older buffer folders go. A crash at any moment leaves a
     ``last.pt`` whose buffer is complete on disk. Plain data only: loadable with
     ``weights_only=True``."""
-    import shutil
 
-    from pamrun.runs.files import atomic_save
 
     needed = _checkpoint_bytes(learner, buffer)
     free = shutil.disk_usage(ckpt_dir).free
@@ -280,7 +288,6 @@ def _checkpoint_bytes(learner, buffer) -> int:
 
 def file_fingerprints(folder: Path) -> dict[str, list[int]]:
     """Relative path -> [size, CRC-32] of every file below ``folder``."""
-    import zlib
 
     out = {}
     for path in sorted(p for p in folder.rglob("*") if p.is_file()):
@@ -294,7 +301,7 @@ def file_fingerprints(folder: Path) -> dict[str, list[int]]:
 
 def saved_counters(ckpt_dir: Path) -> dict | None:
     """The counters of the last checkpoint on disk (None without one)."""
-    import torch
+    import torch  # heavy: imported where a tensor is read or written (module docstring)
 
     path = ckpt_dir / LAST
     return dict(torch.load(path, weights_only=True)["counters"]) if path.exists() else None
@@ -306,9 +313,8 @@ def load_last(ckpt_dir: Path, learner, buffer) -> dict:
     Every piece is checked first: ``last.pt`` must load, and each buffer file must have the
     size and checksum the checkpoint recorded, so a resume never trains on a truncated or
     zero-filled buffer. A failure raises :class:`CheckpointError` naming the file."""
-    import warnings
 
-    import torch
+    import torch  # heavy: imported where a tensor is read or written (module docstring)
 
     last = ckpt_dir / LAST
     try:
@@ -362,8 +368,6 @@ def check_reward_terms(buffer, folder: Path) -> None:
     import torch  # torch and TorchRL: heavy, imported where used (as everywhere in this module)
     from tensordict import TensorDict
 
-    from pamrun.learning.curriculum import FEATURES
-    from pamrun.task.reward import REWARD_KEYS
 
     storage = buffer.storage._storage if len(buffer) else None
     stored = None if storage is None else storage.get(("next", FEATURES), None)
@@ -384,10 +388,8 @@ def check_reward_terms(buffer, folder: Path) -> None:
 
 def rng_states() -> dict:
     """Torch, numpy and Python RNG states as tensors, lists and numbers (weights_only-safe)."""
-    import random
 
-    import numpy as np
-    import torch
+    import torch  # heavy: imported where a tensor is read or written (module docstring)
 
     np_state = np.random.get_state(legacy=False)
     np_state["state"]["key"] = np_state["state"]["key"].tolist()
@@ -395,10 +397,8 @@ def rng_states() -> dict:
 
 
 def set_rng_states(rng: dict) -> None:
-    import random
 
-    import numpy as np
-    import torch
+    import torch  # heavy: imported where a tensor is read or written (module docstring)
 
     torch.set_rng_state(rng["torch"])
     np_state = dict(rng["numpy"])

@@ -25,6 +25,7 @@ both (``train.mirror``).
 from __future__ import annotations
 
 import numpy as np
+import torch
 
 from pamrun.physics.body import JOINTS, LEG_JOINTS, SIDES, mirror_sign
 
@@ -87,8 +88,6 @@ def mirror_batch(batch, env):
     """A TorchRL batch of transitions reflected: observations, next observations and actions
     mirrored, everything else (rewards, their terms, done flags, ...) as it is. ``env`` (the
     run's EnvConfig) says which optional blocks the observation has."""
-    import torch
-
     n_actions = batch["action"].shape[-1]
     o_map = observation_map(n_actions, env.speed_command, env.gait_period_s > 0)
     o_index, o_sign = (torch.as_tensor(x) for x in o_map)

@@ -10,6 +10,7 @@ import numpy as np
 from rich.table import Table
 
 from pamrun.config import Config
+from pamrun.evaluation import figures
 from pamrun.learning import checkpoints
 from pamrun.runs.directory import RunFiles
 
@@ -99,3 +100,11 @@ def end_of_run(console, out: Path, status: str | None, failure: Exception | None
                       "check body.mass_kg and body.height_m, the muscles' strength (muscle.size, muscle.count, "
                       "muscle.max_pressure_kpa) against them, and env.physics_dt_s.")
         raise SystemExit(1)
+
+
+def plot_training(dcfg) -> None:
+    """``pamrun plot training dir=<run dir>``: redraw training.png from episodes.csv."""
+    files = RunFiles(dcfg.dir)
+    if not files.episodes.exists():
+        raise SystemExit(f"pamrun: no episodes.csv in {files.out}")
+    print(f"Wrote {figures.training_curves(files.episodes, files.training_png)}")

@@ -20,18 +20,29 @@ import random
 import time
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import torch
+from hydra.core.hydra_config import HydraConfig
+from torch.utils.tensorboard import SummaryWriter
+from torchrl.collectors import AsyncCollector, Collector, MultiAsyncCollector, MultiSyncCollector
+from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer, Unbounded
+from torchrl.envs import GymWrapper
+from torchrl.envs.gym_like import default_info_dict_reader
 
-from pamrun.config import Config
+import pamrun  # noqa: F401  (registers PamWalker-v0 with Gymnasium, in worker processes too)
+from pamrun.config import Config, to_object
 from pamrun.evaluation import figures
+from pamrun.evaluation.evaluator import TrainingEvaluator
 from pamrun.learning import checkpoints, networks
 from pamrun.learning.curriculum import FeatureReader, WalkCurriculum, reweighted_terms
 from pamrun.runs import directory
 from pamrun.runs.directory import EVAL_FIELDS, CsvLog, EpisodeLog, RunFiles
-from pamrun.runs.files import Progress
+from pamrun.runs.files import Progress, run_dir
+from pamrun.runs.files import console as make_console
 from pamrun.runs.machine import Terminated, stop_signals, usable_cores
 from pamrun.task import randomize
+from pamrun.task.observation import space_sizes
 from pamrun.task.spec import EnvSpec
 from pamrun.task.symmetry import mirror_batch
 from pamrun.training.console import end_of_run, header_table, summary_table
@@ -45,12 +56,7 @@ def make_env(cfg: Config, seed: int | None = None):
     GymWrapper (its ``GymEnv`` reserves the keyword ``env``), reading ``distance``, ``physics_error``
     and the reward's unweighted terms from info; ``seed`` seeds it before a collector's first
     reset (else its start noise comes from the OS)."""
-    import gymnasium as gym
-    from torchrl.data import Unbounded
-    from torchrl.envs import GymWrapper
-    from torchrl.envs.gym_like import default_info_dict_reader
 
-    import pamrun  # noqa: F401  (registers the env in worker processes too)
 
     spec, t, features = EnvSpec.from_config(cfg), cfg.train, reweighted_terms(cfg)  # the curriculum's terms
     env = GymWrapper(randomize.RandomizedWalker.from_config(spec, cfg, features) if t.randomize
@@ -68,12 +74,6 @@ def make_collector(cfg: Config, policy, total_frames: int, start_random: int, se
     processes stepping in lockstep, or with ``train.async_collection`` in worker processes
     that keep stepping while the learner updates (each batch then comes from the policy of
     one or more batches before)."""
-    from torchrl.collectors import (
-        AsyncCollector,
-        Collector,
-        MultiAsyncCollector,
-        MultiSyncCollector,
-    )
 
     # auto_register_policy_transforms: adds the InitTracker the OU noise needs to restart per episode.
     kwargs = dict(frames_per_batch=cfg.train.frames_per_batch, total_frames=total_frames,
@@ -90,7 +90,6 @@ def make_collector(cfg: Config, policy, total_frames: int, start_random: int, se
 
 
 def make_learner(cfg: Config) -> networks.Learner:
-    from pamrun.task.observation import space_sizes
 
     probe = make_env(cfg)  # the env's action spec, as TorchRL sees it (the losses and exploration need it)
     spec = probe.action_spec_unbatched
@@ -99,7 +98,6 @@ def make_learner(cfg: Config) -> networks.Learner:
 
 
 def make_buffer(cfg: Config, curriculum: WalkCurriculum):
-    from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
     # No batch_size: learn() draws the samples of many updates in one call.
     buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(cfg.train.buffer_size))
@@ -109,7 +107,6 @@ def make_buffer(cfg: Config, curriculum: WalkCurriculum):
 def train(cfg: Config, out: Path, overrides: list[str] = ()) -> str:
     """Train (or resume) the run in ``out`` with ``cfg``; return how it ended (run.json's status).
     ``overrides``: the command line, recorded in run.json (a resume takes a new budget from it)."""
-    from pamrun.runs.files import console as make_console
 
     console = make_console()
     randomize.check(cfg)  # before anything is written
@@ -156,10 +153,7 @@ def train(cfg: Config, out: Path, overrides: list[str] = ()) -> str:
 
 def main(dcfg) -> None:
     """The Hydra task of ``pamrun train``: its config and run directory from Hydra."""
-    from hydra.core.hydra_config import HydraConfig
 
-    from pamrun.config import to_object
-    from pamrun.runs.files import run_dir
 
     train(to_object(dcfg), run_dir(), list(HydraConfig.get().overrides.task))
 
@@ -170,7 +164,6 @@ class Run:
 
     def __init__(self, cfg: Config, out: Path, learner, buffer, console, counters: dict, resuming: bool, overrides,
                  curriculum: WalkCurriculum):
-        from torch.utils.tensorboard import SummaryWriter
 
         self.cfg, self.out, self.files, self.console = cfg, out, RunFiles(out), console
         self.learner, self.buffer, self.curriculum = learner, buffer, curriculum
@@ -285,7 +278,6 @@ class Evaluations:
     its evaluation is stored in it, so a resumed run keeps comparing against it."""
 
     def __init__(self, cfg: Config, out: Path, writer):
-        from pamrun.evaluation.evaluator import TrainingEvaluator
 
         self.best_path = RunFiles(out).best_eval
         self.evaluator = TrainingEvaluator(cfg)
@@ -396,11 +388,3 @@ def stop_reason(cfg: Config, log: EpisodeLog, elapsed_s: float) -> str | None:
             np.mean(log.rewards[-t.avg_window:]) >= t.target_avg_reward:
         return "target_avg_reward"
     return None
-
-
-def plot_training(dcfg) -> None:
-    """``pamrun plot training dir=<run dir>``: redraw training.png from episodes.csv."""
-    files = RunFiles(dcfg.dir)
-    if not files.episodes.exists():
-        raise SystemExit(f"pamrun: no episodes.csv in {files.out}")
-    print(f"Wrote {figures.training_curves(files.episodes, files.training_png)}")
