@@ -159,6 +159,9 @@ class PamWalkerEnv(gym.Env):
         cfg = self.env_cfg
         self.model = body_mod.build_model(self.body_cfg, timestep_s=cfg.physics_dt_s)
         self.data = mujoco.MjData(self.model)
+        d = self.data  # its arrays, as views read every step (MjData's memory never moves)
+        self._qpos, self._qvel, self._sensordata, self._geom_xpos = d.qpos, d.qvel, d.sensordata, d.geom_xpos
+        self._qfrc_actuator, self._warning_number = d.qfrc_actuator, d.warning.number
         self.n_muscle_steps = int(round(cfg.control_dt_s / cfg.muscle_dt_s))
         self.n_physics_per_muscle = int(round(cfg.muscle_dt_s / cfg.physics_dt_s))
         self.n_substeps = self.n_muscle_steps * self.n_physics_per_muscle  # MuJoCo steps per control step
@@ -193,6 +196,9 @@ class PamWalkerEnv(gym.Env):
         self._foot_sensor_adr = np.array(m.sensor_adr[sensor])
         toes = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, s) for s in body_mod.TOE_SENSORS]
         self._toe_sensor_adr = m.sensor_adr[toes] if min(toes) >= 0 else None  # body.toe: added to the feet
+        # the touch sensors of the right, left foot (and toe) in sensordata as a list
+        self._foot_sensors = operator.itemgetter(*self._foot_sensor_adr.tolist())
+        self._toe_sensors = None if self._toe_sensor_adr is None else operator.itemgetter(*self._toe_sensor_adr.tolist())
         self.mass_kg = float(m.body_subtreemass[0])  # the whole robot
         self.weight_n = float(m.body_subtreemass[0] * -m.opt.gravity[2])
         self.contact_n = CONTACT_WEIGHT_SHARE * self.weight_n  # a foot carrying more is on the ground
@@ -242,14 +248,14 @@ class PamWalkerEnv(gym.Env):
         speed = float(self.np_random.uniform(*cfg.speed_range_m_s)) if cfg.speed_range_m_s else cfg.target_speed_m_s
         ep = self.episode = self._new_episode(speed, float(self.np_random.uniform()) if self.gait_clock else 0.0)
         ep.x0 = float(d.qpos[0])
-        feet, state = self.foot_forces_n(), self._state()
-        ep.soles, ep.contact = self._feet(feet.tolist())
-        info = self._info(False, feet, self._fell(state), state)
+        forces, state = self._foot_forces(), self._state()
+        ep.soles, ep.contact = self._feet(forces)
+        info = self._info(False, np.array(forces), self._fell(state), state)
         if self.air_meter is not None:
             ep.gas, info["air_nl"] = self._gas(), np.float64(0.0)
         info["reward_terms"] = dict.fromkeys(REWARD_KEYS, 0.0)  # as after a step, so info's keys never change
         info["reward_unweighted"] = dict.fromkeys(REWARD_KEYS, 0.0)
-        return self._observation(feet, state), info
+        return self._observation(forces, state), info
 
     def step(self, action):
         action = self._command(action)
@@ -259,22 +265,21 @@ class PamWalkerEnv(gym.Env):
         previous, ep.prev_action = ep.prev_action, action
         # MuJoCo resets the state itself when it meets NaN/Inf, so count its warnings too.
         state = self._state()
-        physics_error = sum(_unstable_counts(self.data.warning.number.tolist())) > 0 or not _all_finite(*state[:2])
-        feet = self.foot_forces_n()
-        forces = feet.tolist()
+        physics_error = any(_unstable_counts(self._warning_number.tolist())) or not _all_finite(*state[:2])
+        forces = self._foot_forces()
         soles, contact = self._feet(forces)
         t = Transition(self, ep, state[2], state[0], action, previous, ep.soles, soles, ep.contact, contact, forces)
         ep.soles, ep.contact = soles, contact
         if self.air_meter is not None:
             gas = self._gas()
             t.air_nl, ep.gas = self.air_meter.drawn_nl(ep.gas, gas), gas
-        obs = self._observation(feet, state)
+        obs = self._observation(forces, state)
         if physics_error:
             obs = np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
         t.fell = fell = physics_error or self._fell(state)
         reward, terms, features = self.reward(None if physics_error else t)
         truncated = ep.steps >= self.max_steps and not fell
-        info = self._info(physics_error, feet, fell, state)
+        info = self._info(physics_error, np.array(forces), fell, state)
         if self.air_meter is not None:
             info["air_nl"] = np.float64(t.air_nl)  # supply air drawn in this step [normal litres]
         info["reward_terms"], info["reward_unweighted"] = terms, features
@@ -318,31 +323,37 @@ class PamWalkerEnv(gym.Env):
         """qpos and qvel as Python lists, and from them the torso's (x, y, z, roll, pitch, yaw,
         vx, vy, vz, wx, wy, wz): read once per step for the observation, reward, fall check
         and info (Python floats: cheaper than numpy scalars, and the same values)."""
-        d = self.data
-        q, v = d.qpos.tolist(), d.qvel.tolist()
+        q, v = self._qpos.tolist(), self._qvel.tolist()
         return q, v, (*q[0:3], *quat_to_euler(q[3:7]), *v[0:6])
 
     def foot_forces_n(self) -> np.ndarray:
         """Normal ground force [N] under the right and left foot (MuJoCo touch sensors; with
         ``body.toe`` each foot's sum of its sole's and its toe's). Sensors are evaluated inside
         ``mj_step`` before integration, so the value lags the state by one physics step."""
-        forces = self.data.sensordata[self._foot_sensor_adr]  # fancy indexing: a copy
-        if self._toe_sensor_adr is not None:  # body.toe: the toe's touch sensor, under the same foot
-            forces += self.data.sensordata[self._toe_sensor_adr]
-        return forces
+        return np.array(self._foot_forces())
+
+    def _foot_forces(self) -> list[float]:
+        """:meth:`foot_forces_n` as a list (the same sums, as Python floats)."""
+        sensed = self._sensordata.tolist()
+        right, left = self._foot_sensors(sensed)
+        if self._toe_sensors is not None:  # body.toe: the toe's touch sensor, under the same foot
+            right_toe, left_toe = self._toe_sensors(sensed)
+            return [right + right_toe, left + left_toe]
+        return [right, left]
 
     def _feet(self, foot_force_n: list[float]) -> tuple[np.ndarray, list[bool]]:
         """The feet's contact points (2, 4, 3) now, and which are on the ground (under these forces [N])."""
-        soles = self.data.geom_xpos[self._sole_ids].reshape(2, -1, 3)  # fancy indexing: a copy
-        return soles, [f > self.contact_n for f in foot_force_n]
+        soles = self._geom_xpos[self._sole_ids].reshape(2, -1, 3)  # fancy indexing: a copy
+        right, left = foot_force_n
+        return soles, [right > self.contact_n, left > self.contact_n]
 
     def _gas(self) -> np.ndarray:
         """The muscles' gas P V [kPa l] now (the air meter's)."""
         return self.air_meter.gas_kpa_l(self.drive.pressure_kpa.ravel(), self.drive.contraction_pct.ravel())
 
-    def _observation(self, foot_force_n: np.ndarray, state: _State | None = None) -> np.ndarray:
+    def _observation(self, foot_force_n: list[float], state: _State | None = None) -> np.ndarray:
         q, v, (_, y, z, roll, pitch, yaw, *velocity) = self._state() if state is None else state
-        right, left = foot_force_n.tolist()
+        right, left = foot_force_n
         sensed = [y, z, roll, pitch, yaw, *velocity, *self._joint_angles(q), *self._joint_velocities(v),
                   right / self.weight_n, left / self.weight_n]
         if self.env_cfg.observation_noise_std > 0:
@@ -360,18 +371,17 @@ class PamWalkerEnv(gym.Env):
 
     def _info(self, physics_error: bool, foot_force_n: np.ndarray, fell: bool, state: _State | None = None
               ) -> dict[str, Any]:
-        torso = (self._state() if state is None else state)[2]
-        x, y, z = np.float64(torso[0]), np.float64(torso[1]), np.float64(torso[2])  # TorchRL's info readers need .dtype
-        return {
-            "x": x,
-            "y": y,
-            "z": z,
+        x, y, z = (self._state() if state is None else state)[2][:3]
+        return {  # numpy scalars: TorchRL's info readers need .dtype
+            "x": np.float64(x),
+            "y": np.float64(y),
+            "z": np.float64(z),
             "distance": np.float64(x - self.episode.x0),
             "pressure_kpa": self.drive.pressure_kpa.copy(),
             "contraction_pct": self.drive.contraction_pct.copy(),
             "foot_force_n": foot_force_n,
             "sole_xyz_m": self.episode.soles,  # (2, 4, 3), this step's
-            "joint_torque_nm": self.data.qfrc_actuator[self.qvel_idx],
+            "joint_torque_nm": self._qfrc_actuator[self.qvel_idx],
             "fell": bool(fell),
             "physics_error": np.bool_(physics_error),  # numpy: TorchRL's info reader needs a dtype
             "target_speed_m_s": np.float64(self.episode.target_speed_m_s),  # v*, this episode's
