@@ -328,13 +328,16 @@ class MuscleDrive:
         self.voltage_v = self.voltages_v(self._rest_action)
         self.coupling.reset()
 
-    def voltages_v(self, action: np.ndarray) -> np.ndarray:
-        """Actions in [-1, 1] -> (10, 2) regulator voltages (see ``muscle.command``).
+    def voltages_v(self, action: np.ndarray, clipped: bool = False) -> np.ndarray:
+        """Actions in [-1, 1] -> (10, 2) regulator voltages (see ``muscle.command``); ``clipped``:
+        the actions are a float array already in [-1, 1] (or NaN), which the clip would leave as they are.
 
         The values of ``pairs.voltages_v`` (V0 + dV a, V0 - dV a), bit for bit, without its
         np.clip and np.stack, whose Python wrappers cost more than the arithmetic."""
-        a = np.maximum(action, -1.0, dtype=float)  # np.clip(a, -1, 1), NaN kept
-        np.minimum(a, 1.0, out=a)
+        a = action
+        if not clipped:
+            a = np.maximum(action, -1.0, dtype=float)  # np.clip(a, -1, 1), NaN kept
+            np.minimum(a, 1.0, out=a)
         if self.n_actions == len(self.radius_m):
             # a * -dV is exactly -(dV a), and (-(dV a)) + V0 is V0 - dV a (a sum is the same either way round)
             voltage = np.multiply.outer(a, self._swing_v)
@@ -343,9 +346,9 @@ class MuscleDrive:
         voltage += self.cfg.v0_v
         return voltage
 
-    def set_action(self, action: np.ndarray) -> None:
-        """Hold the regulator voltages for this action until the next call."""
-        self.voltage_v = self.voltages_v(action)
+    def set_action(self, action: np.ndarray, clipped: bool = False) -> None:
+        """Hold the regulator voltages for this action until the next call (``clipped``: see :meth:`voltages_v`)."""
+        self.voltage_v = self.voltages_v(action, clipped)
 
     def set_voltages(self, voltage_v: np.ndarray) -> None:
         """Direct regulator voltages (n, 2), e.g. for open-loop pressure steps."""

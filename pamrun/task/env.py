@@ -191,6 +191,7 @@ class PamWalkerEnv(gym.Env):
         self._torso_id = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body_mod.TORSO)
         self._sole_ids = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"{side}_contact_{end}_{edge}")
                                    for side in body_mod.SIDES for end in ("front", "back") for edge in ("left", "right")])
+        self._sole_ids_by_foot = self._sole_ids.reshape(2, -1)
         self.sole_radius_m = float(m.geom_size[self._sole_ids, 0].max())  # kgait's clearance: sphere bottom
         sensor = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, s) for s in body_mod.FOOT_SENSORS]
         self._foot_sensor_adr = np.array(m.sensor_adr[sensor])
@@ -303,7 +304,9 @@ class PamWalkerEnv(gym.Env):
     def _command(self, action) -> np.ndarray:
         """The command applied: the action clipped to [-1, 1], low-passed with ``env.action_filter_alpha`` < 1."""
         # np.clip(action, -1, 1) as two ufuncs (np.clip's Python wrapper costs more than both).
-        action = np.maximum(np.asarray(action, dtype=np.float64).reshape(self.n_actions), -1.0)
+        action = np.maximum(action, -1.0, dtype=np.float64)
+        if action.shape != self.action_space.shape:
+            action = action.reshape(self.n_actions)
         np.minimum(action, 1.0, out=action)
         alpha = self.env_cfg.action_filter_alpha
         if alpha < 1.0:
@@ -313,7 +316,7 @@ class PamWalkerEnv(gym.Env):
     def _advance(self, action: np.ndarray) -> None:
         """One control step of the muscles and MuJoCo under ``action`` (and the push, if in it)."""
         d = self.data
-        self.drive.set_action(action)
+        self.drive.set_action(action, clipped=self.env_cfg.action_filter_alpha >= 1.0)  # _command's clip
         if self._push_steps:
             d.xfrc_applied[self._torso_id, :3] = self._push_force_n if self.episode.steps + 1 in self._push_steps else 0.0
         self.drive.advance(self.model, d, self.qpos_idx, self.qvel_idx, self.env_cfg.muscle_dt_s, self.n_muscle_steps,
@@ -343,7 +346,7 @@ class PamWalkerEnv(gym.Env):
 
     def _feet(self, foot_force_n: list[float]) -> tuple[np.ndarray, list[bool]]:
         """The feet's contact points (2, 4, 3) now, and which are on the ground (under these forces [N])."""
-        soles = self._geom_xpos[self._sole_ids].reshape(2, -1, 3)  # fancy indexing: a copy
+        soles = self._geom_xpos[self._sole_ids_by_foot]  # fancy indexing: a copy
         right, left = foot_force_n
         return soles, [right > self.contact_n, left > self.contact_n]
 
