@@ -105,13 +105,6 @@ _INSTABILITY_WARNINGS = (
 )
 # What one step reads of the state (PamWalkerEnv._state): qpos, qvel, and the torso's 12 values.
 _State = tuple[list[float], list[float], tuple[float, ...]]
-_unstable_counts = operator.itemgetter(*(int(w) for w in _INSTABILITY_WARNINGS))  # from warning.number
-
-
-def _all_finite(*values: list[float]) -> bool:
-    """Every value finite. A finite sum proves it (NaN and inf propagate through a sum); only a
-    non-finite sum, which may be overflow, needs the value-by-value check."""
-    return math.isfinite(sum(map(sum, values))) or all(math.isfinite(x) for v in values for x in v)
 
 
 @dataclass
@@ -174,6 +167,7 @@ class PamWalkerEnv(gym.Env):
         size = obs_size(self.observation_structure)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (size,), np.float32)
         self._read_model()
+        self._sensing(size)
         self._push_steps, self._push_force_n = self._push()
         # info["air_nl"] and kair's feature: metered only when the reward computes kair
         self.air_meter = AirMeter(self.muscle_cfg.nominal_length_m, MUSCLE_INNER_DIAMETER_M[self.muscle_cfg.size],
@@ -186,8 +180,6 @@ class PamWalkerEnv(gym.Env):
         self.qpos_idx, self.qvel_idx = body_mod.joint_addresses(m)  # the hinges in qpos, qvel (JOINTS order)
         self.qpos_addresses = self.qpos_idx.tolist()
         self.knee_addresses = [self.qpos_addresses[k] for k in KNEES]  # right, left
-        self._joint_angles = operator.itemgetter(*self.qpos_addresses)  # from qpos as a list
-        self._joint_velocities = operator.itemgetter(*self.qvel_idx.tolist())
         self._torso_id = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body_mod.TORSO)
         self._sole_ids = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"{side}_contact_{end}_{edge}")
                                    for side in body_mod.SIDES for end in ("front", "back") for edge in ("left", "right")])
@@ -207,6 +199,19 @@ class PamWalkerEnv(gym.Env):
         key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "stand")
         self._qpos0 = m.key_qpos[key].copy() if key >= 0 else m.qpos0.copy()
         self.z0 = float(self._qpos0[2])
+
+    def _sensing(self, obs_size: int) -> None:
+        """What :func:`pamrun.task.sensing.read_state` reads and writes besides MjData's arrays."""
+        from pamrun.task.sensing import read_state  # numba: compiled on first use, then cached
+
+        self._read_state = read_state
+        self._unstable = np.array([int(w) for w in _INSTABILITY_WARNINGS], dtype=np.intp)
+        self._foot_adr = self._foot_sensor_adr.astype(np.intp)
+        self._toe_adr = np.zeros(0, np.intp) if self._toe_sensor_adr is None else self._toe_sensor_adr.astype(np.intp)
+        self._sole_adr = self._sole_ids_by_foot.astype(np.intp)
+        self._hinge_adr = self.qpos_idx.astype(np.intp), self.qvel_idx.astype(np.intp)
+        self._torso_values, self._sensed = np.zeros(12), np.zeros(OBS_BASE)
+        self._obs_size, self._commands_at = obs_size, OBS_BASE + self.n_actions
 
     def _push(self) -> tuple[range, np.ndarray | None]:
         """The control steps k (1-based: the step that starts at (k - 1) Ts) the torso is pushed in, and the force."""
@@ -249,14 +254,14 @@ class PamWalkerEnv(gym.Env):
         speed = float(self.np_random.uniform(*cfg.speed_range_m_s)) if cfg.speed_range_m_s else cfg.target_speed_m_s
         ep = self.episode = self._new_episode(speed, float(self.np_random.uniform()) if self.gait_clock else 0.0)
         ep.x0 = float(d.qpos[0])
-        forces, state = self._foot_forces(), self._state()
-        ep.soles, ep.contact = self._feet(forces)
-        info = self._info(False, np.array(forces), self._fell(state), state)
+        _, forces, ep.soles, torso, obs = self._sense()
+        ep.contact = self._contact(forces)
+        info = self._info(False, np.array(forces), self._fell(torso), torso)
         if self.air_meter is not None:
             ep.gas, info["air_nl"] = self._gas(), np.float64(0.0)
         info["reward_terms"] = dict.fromkeys(REWARD_KEYS, 0.0)  # as after a step, so info's keys never change
         info["reward_unweighted"] = dict.fromkeys(REWARD_KEYS, 0.0)
-        return self._observation(forces, state), info
+        return obs, info
 
     def step(self, action):
         action = self._command(action)
@@ -264,23 +269,21 @@ class PamWalkerEnv(gym.Env):
         self._advance(action)
         ep.steps += 1
         previous, ep.prev_action = ep.prev_action, action
-        # MuJoCo resets the state itself when it meets NaN/Inf, so count its warnings too.
-        state = self._state()
-        physics_error = any(_unstable_counts(self._warning_number.tolist())) or not _all_finite(*state[:2])
-        forces = self._foot_forces()
-        soles, contact = self._feet(forces)
-        t = Transition(self, ep, state[2], state[0], action, previous, ep.soles, soles, ep.contact, contact, forces)
+        # MuJoCo resets the state itself when it meets NaN/Inf, so its warnings count too.
+        physics_error, forces, soles, torso, obs = self._sense()
+        contact = self._contact(forces)
+        t = Transition(self, ep, torso, self._qpos.tolist(), action, previous, ep.soles, soles, ep.contact, contact,
+                       forces)
         ep.soles, ep.contact = soles, contact
         if self.air_meter is not None:
             gas = self._gas()
             t.air_nl, ep.gas = self.air_meter.drawn_nl(ep.gas, gas), gas
-        obs = self._observation(forces, state)
         if physics_error:
             obs = np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
-        t.fell = fell = physics_error or self._fell(state)
+        t.fell = fell = physics_error or self._fell(torso)
         reward, terms, features = self.reward(None if physics_error else t)
         truncated = ep.steps >= self.max_steps and not fell
-        info = self._info(physics_error, np.array(forces), fell, state)
+        info = self._info(physics_error, np.array(forces), fell, torso)
         if self.air_meter is not None:
             info["air_nl"] = np.float64(t.air_nl)  # supply air drawn in this step [normal litres]
         info["reward_terms"], info["reward_unweighted"] = terms, features
@@ -344,37 +347,41 @@ class PamWalkerEnv(gym.Env):
             return [right + right_toe, left + left_toe]
         return [right, left]
 
-    def _feet(self, foot_force_n: list[float]) -> tuple[np.ndarray, list[bool]]:
-        """The feet's contact points (2, 4, 3) now, and which are on the ground (under these forces [N])."""
-        soles = self._geom_xpos[self._sole_ids_by_foot]  # fancy indexing: a copy
+    def _contact(self, foot_force_n: list[float]) -> list[bool]:
+        """Which feet are on the ground under these forces [N]."""
         right, left = foot_force_n
-        return soles, [right > self.contact_n, left > self.contact_n]
+        return [right > self.contact_n, left > self.contact_n]
 
     def _gas(self) -> np.ndarray:
         """The muscles' gas P V [kPa l] now (the air meter's)."""
         return self.air_meter.gas_kpa_l(self.drive.pressure_kpa.ravel(), self.drive.contraction_pct.ravel())
 
-    def _observation(self, foot_force_n: list[float], state: _State | None = None) -> np.ndarray:
-        q, v, (_, y, z, roll, pitch, yaw, *velocity) = self._state() if state is None else state
-        right, left = foot_force_n
-        sensed = [y, z, roll, pitch, yaw, *velocity, *self._joint_angles(q), *self._joint_velocities(v),
-                  right / self.weight_n, left / self.weight_n]
-        if self.env_cfg.observation_noise_std > 0:
-            sensed = (np.asarray(sensed) + self.np_random.normal(0.0, self.env_cfg.observation_noise_std, OBS_BASE)).tolist()
-        # float64 values rounded once to float32, as np.concatenate(...).astype(np.float32) would
+    def _sense(self) -> tuple[bool, list[float], np.ndarray, list[float], np.ndarray]:
+        """What a step reads of the state now (:func:`pamrun.task.sensing.read_state`): whether the
+        physics blew up, the feet's forces [N], their contact points (2, 4, 3) [m], the torso's 12
+        values (x, y, z, roll, pitch, yaw, vx, vy, vz, wx, wy, wz) and the observation."""
         ep = self.episode
+        obs, soles = np.empty(self._obs_size, np.float32), np.empty(self._sole_adr.shape + (3,))
+        error, right, left = self._read_state(
+            self._qpos, self._qvel, self._sensordata, self._geom_xpos, self._warning_number, self._unstable,
+            self._foot_adr, self._toe_adr, self._sole_adr, *self._hinge_adr, self.weight_n, ep.prev_action,
+            self._torso_values, self._sensed, obs, soles)
+        if self.env_cfg.observation_noise_std > 0:  # rounded once to float32, as the noiseless values
+            obs[:OBS_BASE] = self._sensed + self.np_random.normal(0.0, self.env_cfg.observation_noise_std, OBS_BASE)
         command = [ep.target_speed_m_s] if self.speed_command else []
         if self.gait_clock:
             angle = 2 * math.pi * ep.phase(self.env_cfg)
             command += [math.sin(angle), math.cos(angle)]
-        return np.array([*sensed, *ep.prev_action.tolist(), *command], dtype=np.float32)
+        if command:
+            obs[self._commands_at:] = command
+        return error, [right, left], soles, self._torso_values.tolist(), obs
 
-    def _fell(self, state: _State | None = None) -> bool:
-        return fell_rule((self._state() if state is None else state)[2], self.z0, self.env_cfg)
+    def _fell(self, torso: list[float] | None = None) -> bool:
+        """Whether the robot has fallen (:func:`pamrun.task.criteria.fell`) with the torso's 12 values ``torso``."""
+        return fell_rule(self._state()[2] if torso is None else torso, self.z0, self.env_cfg)
 
-    def _info(self, physics_error: bool, foot_force_n: np.ndarray, fell: bool, state: _State | None = None
-              ) -> dict[str, Any]:
-        x, y, z = (self._state() if state is None else state)[2][:3]
+    def _info(self, physics_error: bool, foot_force_n: np.ndarray, fell: bool, torso: list[float]) -> dict[str, Any]:
+        x, y, z = torso[:3]
         return {  # numpy scalars: TorchRL's info readers need .dtype
             "x": np.float64(x),
             "y": np.float64(y),
