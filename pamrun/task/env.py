@@ -202,9 +202,12 @@ class PamWalkerEnv(gym.Env):
 
     def _sensing(self, obs_size: int) -> None:
         """What :func:`pamrun.task.sensing.read_state` reads and writes besides MjData's arrays."""
-        from pamrun.task.sensing import read_state  # numba: compiled on first use, then cached
+        from pamrun.task.sensing import command_voltages, read_state  # numba: compiled on first use, then cached
 
-        self._read_state = read_state
+        self._read_state, self._command_voltages = read_state, command_voltages
+        # the command's voltages compiled: one per pair (antagonistic), no low-pass
+        self._voltages_compiled = self.n_actions == len(self.drive.radius_m) and self.env_cfg.action_filter_alpha >= 1.0
+        self._swing_v = np.array([self.muscle_cfg.dv_max_v, -self.muscle_cfg.dv_max_v])  # dV, -dV
         self._unstable = np.array([int(w) for w in _INSTABILITY_WARNINGS], dtype=np.intp)
         self._foot_adr = self._foot_sensor_adr.astype(np.intp)
         self._toe_adr = np.zeros(0, np.intp) if self._toe_sensor_adr is None else self._toe_sensor_adr.astype(np.intp)
@@ -264,9 +267,9 @@ class PamWalkerEnv(gym.Env):
         return obs, info
 
     def step(self, action):
-        action = self._command(action)
+        action, voltage = self._command(action)
         ep = self.episode
-        self._advance(action)
+        self._advance(action, voltage)
         ep.steps += 1
         previous, ep.prev_action = ep.prev_action, action
         # MuJoCo resets the state itself when it meets NaN/Inf, so its warnings count too.
@@ -304,8 +307,14 @@ class PamWalkerEnv(gym.Env):
 
     # ------------------------------------------------------------------ pieces
 
-    def _command(self, action) -> np.ndarray:
-        """The command applied: the action clipped to [-1, 1], low-passed with ``env.action_filter_alpha`` < 1."""
+    def _command(self, action) -> tuple[np.ndarray, np.ndarray | None]:
+        """The command applied: the action clipped to [-1, 1], low-passed with ``env.action_filter_alpha`` < 1;
+        and its regulator voltages, where :func:`pamrun.task.sensing.command_voltages` computes them (else None)."""
+        if self._voltages_compiled and type(action) is np.ndarray and action.shape == self.action_space.shape \
+                and action.dtype in (np.float32, np.float64):
+            command, voltage = np.empty(self.n_actions), np.empty((self.n_actions, 2))
+            self._command_voltages(action, self.muscle_cfg.v0_v, self._swing_v, command, voltage)
+            return command, voltage
         # np.clip(action, -1, 1) as two ufuncs (np.clip's Python wrapper costs more than both).
         action = np.maximum(action, -1.0, dtype=np.float64)
         if action.shape != self.action_space.shape:
@@ -314,12 +323,16 @@ class PamWalkerEnv(gym.Env):
         alpha = self.env_cfg.action_filter_alpha
         if alpha < 1.0:
             action = alpha * action + (1.0 - alpha) * self.episode.prev_action
-        return action
+        return action, None
 
-    def _advance(self, action: np.ndarray) -> None:
-        """One control step of the muscles and MuJoCo under ``action`` (and the push, if in it)."""
+    def _advance(self, action: np.ndarray, voltage: np.ndarray | None) -> None:
+        """One control step of the muscles and MuJoCo under ``action`` (its ``voltage`` if computed) and
+        the push, if in it."""
         d = self.data
-        self.drive.set_action(action, clipped=self.env_cfg.action_filter_alpha >= 1.0)  # _command's clip
+        if voltage is None:
+            self.drive.set_action(action, clipped=self.env_cfg.action_filter_alpha >= 1.0)  # _command's clip
+        else:
+            self.drive.set_voltages(voltage)
         if self._push_steps:
             d.xfrc_applied[self._torso_id, :3] = self._push_force_n if self.episode.steps + 1 in self._push_steps else 0.0
         self.drive.advance(self.model, d, self.qpos_idx, self.qvel_idx, self.env_cfg.muscle_dt_s, self.n_muscle_steps,

@@ -1,4 +1,5 @@
-"""What PamWalker-v0 reads of MuJoCo's state after a control step, in one compiled (numba) call.
+"""PamWalker-v0's arithmetic around MuJoCo in a control step, compiled (numba): the command and its
+regulator voltages before it (:func:`command_voltages`), and what it reads of the state after it.
 
 :func:`read_state` computes the torso's 12 values, the observation's sensed values and the
 previous action (:mod:`pamrun.task.observation`'s layout; float64, then rounded once to
@@ -14,7 +15,24 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
+
+
+@njit(cache=True)
+def command_voltages(action, v0, swing, command, voltage):
+    """The command: ``action`` (n,) clipped to [-1, 1] (NaN kept, as np.maximum then np.minimum) into
+    ``command`` (float64), and each pair's regulator voltages V0 + dV a, V0 - dV a into ``voltage``
+    (n, 2) [V] (``swing``: dV, -dV [V]), as :meth:`pamrun.physics.actuation.MuscleDrive.voltages_v`."""
+    for k in range(action.shape[0]):
+        a = np.float64(action[k])
+        if a < -1.0:
+            a = -1.0
+        if a > 1.0:
+            a = 1.0
+        command[k] = a
+        voltage[k, 0] = a * swing[0] + v0
+        voltage[k, 1] = a * swing[1] + v0
 
 
 @njit(cache=True)
