@@ -28,6 +28,9 @@ later process only loads it (about 0.4 s).
 
 :class:`CompiledStep` owns the kernels' constants and buffers and spells their arguments
 once; :class:`pamrun.physics.actuation.CompiledKinematicCoupling` steps the muscles through it.
+A control step is one call (:func:`muscle_advance`): its muscle steps and MuJoCo's C ``mj_step``
+between them, called by address from compiled code, where MuJoCo's library is found. A fatal
+MuJoCo error (``mju_error``) inside it ends the process (the bindings raise ``mujoco.FatalError``).
 """
 
 from __future__ import annotations
