@@ -340,3 +340,19 @@ def test_compiled_command_is_the_drives_voltages():
         reference = np.minimum(np.maximum(action.astype(dtype), -1.0, dtype=float), 1.0)
         assert np.array_equal(command, reference, equal_nan=True)
         assert np.array_equal(voltage, u.drive.voltages_v(action.astype(dtype)), equal_nan=True)
+
+
+def test_lean_info_is_the_full_infos_training_keys():
+    """lean_info=True: info holds what training reads, with the full info's values."""
+    full, lean = PamWalkerEnv(), PamWalkerEnv(lean_info=True)
+    keys = ["distance", "physics_error", "reward_terms", "reward_unweighted"]
+    outs = [full.reset(seed=4), lean.reset(seed=4)]
+    rng = np.random.default_rng(4)
+    for step in range(30):
+        assert list(outs[1][-1]) == keys
+        for k in keys:
+            assert outs[1][-1][k] == outs[0][-1][k] and type(outs[1][-1][k]) is type(outs[0][-1][k])
+        assert np.array_equal(outs[0][0], outs[1][0])
+        action = rng.uniform(-1, 1, 10).astype(np.float32)
+        outs = [full.step(action), lean.step(action)]
+    assert gym.make("pamrun/PamWalker-v0", lean_info=True).unwrapped.lean_info

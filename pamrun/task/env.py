@@ -58,7 +58,9 @@ or when the physics state is not finite (``info["physics_error"]``).
 (the features), each a dict by weight key, ``pressure_kpa``, ``contraction_pct`` (10, 2),
 ``foot_force_n`` (2,) [N], ``sole_xyz_m`` (2, 4, 3) [m], ``joint_torque_nm`` (10,) [N m],
 ``fell``, ``physics_error``, ``target_speed_m_s``, and ``air_nl`` [normal litres] when the
-reward computes ``kair``.
+reward computes ``kair``. With the keyword argument ``lean_info=True`` only ``distance``,
+``physics_error``, ``reward_terms``, ``reward_unweighted`` (and ``air_nl``): what a training run
+reads (``pamrun.training.recipe.make_env``'s info readers), without the cost of the rest.
 """
 
 from __future__ import annotations
@@ -140,11 +142,13 @@ class PamWalkerEnv(gym.Env):
         width: int = 480,
         height: int = 360,
         features: Iterable[str] = (),
+        lean_info: bool = False,
     ):
         self.body_cfg, self.muscle_cfg = as_config(body, BodyConfig), as_config(muscle, MuscleConfig)
         self.reward_cfg, self.env_cfg = as_config(reward, RewardConfig), as_config(env, EnvConfig)
         self.reward = Reward(self.reward_cfg, features)
         self.reward_weights = self.reward.weights  # by key
+        self.lean_info = lean_info  # info: only what training reads (module docstring, "info")
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.render_mode, self.width, self.height = render_mode, width, height
@@ -259,7 +263,7 @@ class PamWalkerEnv(gym.Env):
         ep.x0 = float(d.qpos[0])
         _, forces, ep.soles, torso, obs = self._sense()
         ep.contact = self._contact(forces)
-        info = self._info(False, np.array(forces), self._fell(torso), torso)
+        info = self._info(False, forces, self._fell(torso), torso)
         if self.air_meter is not None:
             ep.gas, info["air_nl"] = self._gas(), np.float64(0.0)
         info["reward_terms"] = dict.fromkeys(REWARD_KEYS, 0.0)  # as after a step, so info's keys never change
@@ -286,7 +290,7 @@ class PamWalkerEnv(gym.Env):
         t.fell = fell = physics_error or self._fell(torso)
         reward, terms, features = self.reward(None if physics_error else t)
         truncated = ep.steps >= self.max_steps and not fell
-        info = self._info(physics_error, np.array(forces), fell, torso)
+        info = self._info(physics_error, forces, fell, torso)
         if self.air_meter is not None:
             info["air_nl"] = np.float64(t.air_nl)  # supply air drawn in this step [normal litres]
         info["reward_terms"], info["reward_unweighted"] = terms, features
@@ -393,19 +397,23 @@ class PamWalkerEnv(gym.Env):
         """Whether the robot has fallen (:func:`pamrun.task.criteria.fell`) with the torso's 12 values ``torso``."""
         return fell_rule(self._state()[2] if torso is None else torso, self.z0, self.env_cfg)
 
-    def _info(self, physics_error: bool, foot_force_n: np.ndarray, fell: bool, torso: list[float]) -> dict[str, Any]:
+    def _info(self, physics_error: bool, foot_force_n: list[float], fell: bool, torso: list[float]) -> dict[str, Any]:
+        """info without the reward's dicts (and ``air_nl``); numpy scalars: TorchRL's info readers need .dtype."""
         x, y, z = torso[:3]
-        return {  # numpy scalars: TorchRL's info readers need .dtype
+        distance = np.float64(x - self.episode.x0)
+        if self.lean_info:
+            return {"distance": distance, "physics_error": np.bool_(physics_error)}
+        return {
             "x": np.float64(x),
             "y": np.float64(y),
             "z": np.float64(z),
-            "distance": np.float64(x - self.episode.x0),
+            "distance": distance,
             "pressure_kpa": self.drive.pressure_kpa.copy(),
             "contraction_pct": self.drive.contraction_pct.copy(),
-            "foot_force_n": foot_force_n,
+            "foot_force_n": np.array(foot_force_n),
             "sole_xyz_m": self.episode.soles,  # (2, 4, 3), this step's
             "joint_torque_nm": self._qfrc_actuator[self.qvel_idx],
             "fell": bool(fell),
-            "physics_error": np.bool_(physics_error),  # numpy: TorchRL's info reader needs a dtype
+            "physics_error": np.bool_(physics_error),
             "target_speed_m_s": np.float64(self.episode.target_speed_m_s),  # v*, this episode's
         }
