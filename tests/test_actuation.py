@@ -55,3 +55,28 @@ def test_static_torque_is_the_same_whichever_kernel():
     angle, pressure = rng.uniform(-1, 1, (5, 10)), rng.uniform(0, 700, (5, 10, 2))
     fast, ref = (MuscleDrive(MuscleConfig(kernel=k), BodyConfig()) for k in ("numba", "numpy"))
     assert np.array_equal(fast.static_torque_nm(angle, pressure), ref.static_torque_nm(angle, pressure))
+
+
+def test_one_call_control_step_is_the_python_loop_bit_for_bit():
+    """muscle_advance (MuJoCo's C mj_step called from compiled code) gives the state that
+    muscle_apply and the bindings' mj_step, called one by one from Python, give."""
+    import mujoco
+
+    from pamrun.task.env import PamWalkerEnv
+
+    assert kernels.MJ_STEP, "MuJoCo's C library not found: the control step falls back to Python"
+    envs = [PamWalkerEnv(), PamWalkerEnv()]
+    envs[1].drive.coupling.compiled.mj_step = 0  # the Python loop
+    rng = np.random.default_rng(0)
+    for env in envs:
+        env.reset(seed=0)
+    for _ in range(60):
+        action = rng.uniform(-1, 1, 10).astype(np.float32)
+        for env in envs:
+            env.step(action)
+    fast, loop = (env.data for env in envs)
+    for name in ("qpos", "qvel", "qacc", "ctrl", "sensordata"):
+        assert np.array_equal(getattr(fast, name), getattr(loop, name)), name
+    assert fast.time == loop.time
+    assert np.array_equal(envs[0].model.actuator_biasprm, envs[1].model.actuator_biasprm)
+    assert isinstance(fast, mujoco.MjData)

@@ -309,3 +309,51 @@ def test_compiled_muscle_kernel_matches_numpy_reference(muscle):
         np.testing.assert_allclose(fast[key], ref[key], rtol=1e-9, atol=1e-9, err_msg=key)
     # a real test: the pressures move (lag and clips at work) and the robot moves
     assert np.ptp(ref["pressure"]) > 300 and np.ptp(ref["obs"][:, 11:21]) > 0.3
+
+
+@pytest.mark.parametrize("toe", [False, True])
+def test_compiled_reading_is_the_python_one(toe):
+    """task/sensing.read_state's torso, observation and feet are Python's values from the same state."""
+    u = PamWalkerEnv(body={"toe": toe})
+    u.reset(seed=2)
+    rng = np.random.default_rng(3)
+    for _ in range(40):
+        u.step(rng.uniform(-1, 1, u.n_actions).astype(np.float32))
+    error, forces, soles, torso, obs = u._sense()
+    q, v, python_torso = u._state()
+    assert not error and torso == list(python_torso)
+    assert forces == u.foot_forces_n().tolist()
+    assert np.array_equal(soles, u.data.geom_xpos[u._sole_ids].reshape(2, -1, 3))
+    sensed = [*python_torso[1:12], *(q[a] for a in u.qpos_idx), *(v[a] for a in u.qvel_idx),
+              *(f / u.weight_n for f in forces), *u.episode.prev_action.tolist()]
+    assert np.array_equal(obs, np.array(sensed, dtype=np.float32))
+
+
+def test_compiled_command_is_the_drives_voltages():
+    """sensing.command_voltages clips and maps to voltages as the env's numpy path and MuscleDrive do."""
+    from pamrun.task.sensing import command_voltages
+
+    u = PamWalkerEnv()
+    action = np.array([-3.0, -1.0, -0.0, 0.0, 0.3, 1.0, 2.5, np.nan, np.inf, -np.inf])
+    for dtype in (np.float32, np.float64):
+        command, voltage = np.empty(10), np.empty((10, 2))
+        command_voltages(action.astype(dtype), u.muscle_cfg.v0_v, u._swing_v, command, voltage)
+        reference = np.minimum(np.maximum(action.astype(dtype), -1.0, dtype=float), 1.0)
+        assert np.array_equal(command, reference, equal_nan=True)
+        assert np.array_equal(voltage, u.drive.voltages_v(action.astype(dtype)), equal_nan=True)
+
+
+def test_lean_info_is_the_full_infos_training_keys():
+    """lean_info=True: info holds what training reads, with the full info's values."""
+    full, lean = PamWalkerEnv(), PamWalkerEnv(lean_info=True)
+    keys = ["distance", "physics_error", "reward_terms", "reward_unweighted"]
+    outs = [full.reset(seed=4), lean.reset(seed=4)]
+    rng = np.random.default_rng(4)
+    for step in range(30):
+        assert list(outs[1][-1]) == keys
+        for k in keys:
+            assert outs[1][-1][k] == outs[0][-1][k] and type(outs[1][-1][k]) is type(outs[0][-1][k])
+        assert np.array_equal(outs[0][0], outs[1][0])
+        action = rng.uniform(-1, 1, 10).astype(np.float32)
+        outs = [full.step(action), lean.step(action)]
+    assert gym.make("pamrun/PamWalker-v0", lean_info=True).unwrapped.lean_info

@@ -310,7 +310,11 @@ class MuscleDrive:
         self.force_scale = force_scales(muscle)
         self.n_actions = n_actions(muscle)
         self.pairs = AntagonisticPairs(muscle, len(self.radius_m), self.force_scale, muscle_counts(muscle))
-        self.voltage_v = self.voltages_v(np.zeros(self.n_actions))
+        self._swing_v = np.array([muscle.dv_max_v, -muscle.dv_max_v])  # dV, -dV: each pair's (antagonistic)
+        self._rest_action = np.zeros(self.n_actions)
+        # V0's pressure [kPa], where a reset puts every muscle (the config is fixed for the drive's life)
+        self._v0_kpa = self.pairs.regulator.target_pressure_kpa(np.full((1, 2), muscle.v0_v))[0, 0]
+        self.voltage_v = self.voltages_v(self._rest_action)
         self.coupling = make_coupling(muscle, self.pairs, self.radius_m)
 
     @property
@@ -320,27 +324,31 @@ class MuscleDrive:
 
     def reset(self) -> None:
         """Both muscles of every pair at V0's pressure and the coupling's rest contraction."""
-        v0_kpa = self.pairs.regulator.target_pressure_kpa(np.full((1, 2), self.cfg.v0_v))[0, 0]
-        self.pairs.reset(v0_kpa, self.coupling.rest_pct)
-        self.voltage_v = self.voltages_v(np.zeros(self.n_actions))
+        self.pairs.reset(self._v0_kpa, self.coupling.rest_pct)
+        self.voltage_v = self.voltages_v(self._rest_action)
         self.coupling.reset()
 
-    def voltages_v(self, action: np.ndarray) -> np.ndarray:
-        """Actions in [-1, 1] -> (10, 2) regulator voltages (see ``muscle.command``).
+    def voltages_v(self, action: np.ndarray, clipped: bool = False) -> np.ndarray:
+        """Actions in [-1, 1] -> (10, 2) regulator voltages (see ``muscle.command``); ``clipped``:
+        the actions are a float array already in [-1, 1] (or NaN), which the clip would leave as they are.
 
         The values of ``pairs.voltages_v`` (V0 + dV a, V0 - dV a), bit for bit, without its
         np.clip and np.stack, whose Python wrappers cost more than the arithmetic."""
-        a = np.maximum(np.asarray(action, dtype=float), -1.0)  # np.clip(a, -1, 1), NaN kept
-        np.minimum(a, 1.0, out=a)
-        n, v0 = len(self.radius_m), self.cfg.v0_v
-        if self.n_actions == n:
-            # a * -dV is exactly -(dV a), and V0 + -(dV a) is V0 - dV a
-            return v0 + np.multiply.outer(a, (self.cfg.dv_max_v, -self.cfg.dv_max_v))
-        return v0 + self.cfg.dv_max_v * a.reshape(n, 2)
+        a = action
+        if not clipped:
+            a = np.maximum(action, -1.0, dtype=float)  # np.clip(a, -1, 1), NaN kept
+            np.minimum(a, 1.0, out=a)
+        if self.n_actions == len(self.radius_m):
+            # a * -dV is exactly -(dV a), and (-(dV a)) + V0 is V0 - dV a (a sum is the same either way round)
+            voltage = np.multiply.outer(a, self._swing_v)
+        else:
+            voltage = self.cfg.dv_max_v * a.reshape(len(self.radius_m), 2)
+        voltage += self.cfg.v0_v
+        return voltage
 
-    def set_action(self, action: np.ndarray) -> None:
-        """Hold the regulator voltages for this action until the next call."""
-        self.voltage_v = self.voltages_v(action)
+    def set_action(self, action: np.ndarray, clipped: bool = False) -> None:
+        """Hold the regulator voltages for this action until the next call (``clipped``: see :meth:`voltages_v`)."""
+        self.voltage_v = self.voltages_v(action, clipped)
 
     def set_voltages(self, voltage_v: np.ndarray) -> None:
         """Direct regulator voltages (n, 2), e.g. for open-loop pressure steps."""

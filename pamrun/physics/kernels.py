@@ -28,15 +28,24 @@ later process only loads it (about 0.4 s).
 
 :class:`CompiledStep` owns the kernels' constants and buffers and spells their arguments
 once; :class:`pamrun.physics.actuation.CompiledKinematicCoupling` steps the muscles through it.
+A control step is one call (:func:`muscle_advance`): its muscle steps and MuJoCo's C ``mj_step``
+between them, called by address from compiled code, where MuJoCo's library is found. A fatal
+MuJoCo error (``mju_error``) inside it ends the process (the bindings raise ``mujoco.FatalError``).
 """
 
 from __future__ import annotations
 
+import ctypes
+import glob
 import math
+import os
 
+import mujoco
 import numpy as np
+from llvmlite import ir
 from mujoco import mj_step
-from numba import njit
+from numba import njit, types
+from numba.extending import intrinsic
 
 from pamrun.physics.hysteresis import M_PER_PCT
 from pamrun.physics.muscle import ATMOSPHERE_KPA, MAX_CONTRACTION_PCT
@@ -328,6 +337,49 @@ def muscle_apply(voltage, new_voltage, stale, lag_factor, params, target, pressu
     return changed
 
 
+def mj_step_address() -> int:
+    """The address of MuJoCo's C ``mj_step(m, d)`` in the library the bindings use (0: not found)."""
+    folder = os.path.dirname(mujoco.__file__)
+    for name in ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll"):
+        for path in sorted(glob.glob(os.path.join(folder, name))):
+            try:
+                return ctypes.cast(ctypes.CDLL(path).mj_step, ctypes.c_void_p).value or 0
+            except (OSError, AttributeError):
+                continue
+    return 0
+
+
+@intrinsic
+def _mj_step(typingctx, function, model, data):
+    """Call the C function ``void f(const mjModel*, mjData*)`` at address ``function`` on the
+    structs at ``model``, ``data`` (addresses as integers)."""
+    def codegen(context, builder, signature, args):
+        pointer = ir.IntType(8).as_pointer()
+        callee = builder.inttoptr(args[0], ir.FunctionType(ir.VoidType(), [pointer, pointer]).as_pointer())
+        builder.call(callee, [builder.inttoptr(args[1], pointer), builder.inttoptr(args[2], pointer)])
+        return context.get_dummy_value()
+    return types.none(types.intp, types.intp, types.intp), codegen
+
+
+@njit(cache=True)
+def muscle_advance(step_function, model, data, muscle_steps, physics_steps, voltage, new_voltage, stale, lag_factor,
+                   params, target, pressure, volume, reservoir, law, edges, springs, joint, angle, contraction, coef,
+                   damping, slip_law, slip, slip_gain, torque, stiffness, qpos, qpos_idx, ctrl, biasprm):
+    """``muscle_steps`` times :func:`muscle_apply` (its arguments after the first five; ``new_voltage``
+    and ``stale`` hold for the first), then ``physics_steps`` calls of MuJoCo's mj_step, the C
+    function at address ``step_function`` (:func:`mj_step_address`), on the mjModel and mjData at
+    addresses ``model`` and ``data``: one control step in one call."""
+    for k in range(muscle_steps):
+        first = k == 0
+        muscle_apply(voltage, new_voltage and first, stale and first, lag_factor, params, target, pressure, volume,
+                     reservoir, law, edges, springs, joint, angle, contraction, coef, damping, slip_law, slip,
+                     slip_gain, torque, stiffness, qpos, qpos_idx, ctrl, biasprm)
+        for _ in range(physics_steps):
+            _mj_step(step_function, model, data)
+
+
+MJ_STEP = mj_step_address()
+
 
 class CompiledStep:
     """The compiled muscle step's state and arguments, spelled once (``muscle.kernel=numba``).
@@ -386,6 +438,7 @@ class CompiledStep:
         self.stale = True  # no coefficients yet (after a reset): the next step computes them
         self._lag_dt: float | None = None
         self._lag_factor = 0.0
+        self.mj_step = MJ_STEP  # MuJoCo's C mj_step (0: MuJoCo stepped from Python)
 
     def arguments(self, voltage_v: np.ndarray, dt_s: float, angle_rad: np.ndarray) -> tuple:
         """:func:`muscle_step`'s arguments, in its order, for holding ``voltage_v`` (n, 2) [V]
@@ -422,8 +475,14 @@ class CompiledStep:
     def advance(self, voltage_v: np.ndarray, model, data, qpos_idx: np.ndarray, dt_s: float, muscle_steps: int,
                 physics_steps: int) -> None:
         """``muscle_steps`` times :meth:`apply`, then ``physics_steps`` MuJoCo steps; the arguments
-        gathered once, so between MuJoCo steps there is one kernel call and no other Python."""
+        gathered once, so between MuJoCo steps there is one kernel call and no other Python. Where
+        MuJoCo's C library is found (:func:`mj_step_address`) the whole loop is one compiled call
+        (:func:`muscle_advance`), the same calls in the same order."""
         first = self._mujoco_arguments(voltage_v, dt_s, model, data, qpos_idx)
+        if self.mj_step and muscle_steps:
+            muscle_advance(self.mj_step, model._address, data._address, muscle_steps, physics_steps, *first)
+            self.stale = False
+            return
         # after the first call the command is the regulator's and the coefficients exist
         later = (first[0], False, False, *first[3:])
         for k in range(muscle_steps):

@@ -58,7 +58,9 @@ or when the physics state is not finite (``info["physics_error"]``).
 (the features), each a dict by weight key, ``pressure_kpa``, ``contraction_pct`` (10, 2),
 ``foot_force_n`` (2,) [N], ``sole_xyz_m`` (2, 4, 3) [m], ``joint_torque_nm`` (10,) [N m],
 ``fell``, ``physics_error``, ``target_speed_m_s``, and ``air_nl`` [normal litres] when the
-reward computes ``kair``.
+reward computes ``kair``. With the keyword argument ``lean_info=True`` only ``distance``,
+``physics_error``, ``reward_terms``, ``reward_unweighted`` (and ``air_nl``): what a training run
+reads (``pamrun.training.recipe.make_env``'s info readers), without the cost of the rest.
 """
 
 from __future__ import annotations
@@ -105,13 +107,6 @@ _INSTABILITY_WARNINGS = (
 )
 # What one step reads of the state (PamWalkerEnv._state): qpos, qvel, and the torso's 12 values.
 _State = tuple[list[float], list[float], tuple[float, ...]]
-_unstable_counts = operator.itemgetter(*(int(w) for w in _INSTABILITY_WARNINGS))  # from warning.number
-
-
-def _all_finite(*values: list[float]) -> bool:
-    """Every value finite. A finite sum proves it (NaN and inf propagate through a sum); only a
-    non-finite sum, which may be overflow, needs the value-by-value check."""
-    return math.isfinite(sum(map(sum, values))) or all(math.isfinite(x) for v in values for x in v)
 
 
 @dataclass
@@ -147,11 +142,13 @@ class PamWalkerEnv(gym.Env):
         width: int = 480,
         height: int = 360,
         features: Iterable[str] = (),
+        lean_info: bool = False,
     ):
         self.body_cfg, self.muscle_cfg = as_config(body, BodyConfig), as_config(muscle, MuscleConfig)
         self.reward_cfg, self.env_cfg = as_config(reward, RewardConfig), as_config(env, EnvConfig)
         self.reward = Reward(self.reward_cfg, features)
         self.reward_weights = self.reward.weights  # by key
+        self.lean_info = lean_info  # info: only what training reads (module docstring, "info")
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.render_mode, self.width, self.height = render_mode, width, height
@@ -159,6 +156,9 @@ class PamWalkerEnv(gym.Env):
         cfg = self.env_cfg
         self.model = body_mod.build_model(self.body_cfg, timestep_s=cfg.physics_dt_s)
         self.data = mujoco.MjData(self.model)
+        d = self.data  # its arrays, as views read every step (MjData's memory never moves)
+        self._qpos, self._qvel, self._sensordata, self._geom_xpos = d.qpos, d.qvel, d.sensordata, d.geom_xpos
+        self._qfrc_actuator, self._warning_number = d.qfrc_actuator, d.warning.number
         self.n_muscle_steps = int(round(cfg.control_dt_s / cfg.muscle_dt_s))
         self.n_physics_per_muscle = int(round(cfg.muscle_dt_s / cfg.physics_dt_s))
         self.n_substeps = self.n_muscle_steps * self.n_physics_per_muscle  # MuJoCo steps per control step
@@ -171,6 +171,7 @@ class PamWalkerEnv(gym.Env):
         size = obs_size(self.observation_structure)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (size,), np.float32)
         self._read_model()
+        self._sensing(size)
         self._push_steps, self._push_force_n = self._push()
         # info["air_nl"] and kair's feature: metered only when the reward computes kair
         self.air_meter = AirMeter(self.muscle_cfg.nominal_length_m, MUSCLE_INNER_DIAMETER_M[self.muscle_cfg.size],
@@ -183,16 +184,18 @@ class PamWalkerEnv(gym.Env):
         self.qpos_idx, self.qvel_idx = body_mod.joint_addresses(m)  # the hinges in qpos, qvel (JOINTS order)
         self.qpos_addresses = self.qpos_idx.tolist()
         self.knee_addresses = [self.qpos_addresses[k] for k in KNEES]  # right, left
-        self._joint_angles = operator.itemgetter(*self.qpos_addresses)  # from qpos as a list
-        self._joint_velocities = operator.itemgetter(*self.qvel_idx.tolist())
         self._torso_id = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body_mod.TORSO)
         self._sole_ids = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"{side}_contact_{end}_{edge}")
                                    for side in body_mod.SIDES for end in ("front", "back") for edge in ("left", "right")])
+        self._sole_ids_by_foot = self._sole_ids.reshape(2, -1)
         self.sole_radius_m = float(m.geom_size[self._sole_ids, 0].max())  # kgait's clearance: sphere bottom
         sensor = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, s) for s in body_mod.FOOT_SENSORS]
         self._foot_sensor_adr = np.array(m.sensor_adr[sensor])
         toes = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, s) for s in body_mod.TOE_SENSORS]
         self._toe_sensor_adr = m.sensor_adr[toes] if min(toes) >= 0 else None  # body.toe: added to the feet
+        # the touch sensors of the right, left foot (and toe) in sensordata as a list
+        self._foot_sensors = operator.itemgetter(*self._foot_sensor_adr.tolist())
+        self._toe_sensors = None if self._toe_sensor_adr is None else operator.itemgetter(*self._toe_sensor_adr.tolist())
         self.mass_kg = float(m.body_subtreemass[0])  # the whole robot
         self.weight_n = float(m.body_subtreemass[0] * -m.opt.gravity[2])
         self.contact_n = CONTACT_WEIGHT_SHARE * self.weight_n  # a foot carrying more is on the ground
@@ -200,6 +203,22 @@ class PamWalkerEnv(gym.Env):
         key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "stand")
         self._qpos0 = m.key_qpos[key].copy() if key >= 0 else m.qpos0.copy()
         self.z0 = float(self._qpos0[2])
+
+    def _sensing(self, obs_size: int) -> None:
+        """What :func:`pamrun.task.sensing.read_state` reads and writes besides MjData's arrays."""
+        from pamrun.task.sensing import command_voltages, read_state  # numba: compiled on first use, then cached
+
+        self._read_state, self._command_voltages = read_state, command_voltages
+        # the command's voltages compiled: one per pair (antagonistic), no low-pass
+        self._voltages_compiled = self.n_actions == len(self.drive.radius_m) and self.env_cfg.action_filter_alpha >= 1.0
+        self._swing_v = np.array([self.muscle_cfg.dv_max_v, -self.muscle_cfg.dv_max_v])  # dV, -dV
+        self._unstable = np.array([int(w) for w in _INSTABILITY_WARNINGS], dtype=np.intp)
+        self._foot_adr = self._foot_sensor_adr.astype(np.intp)
+        self._toe_adr = np.zeros(0, np.intp) if self._toe_sensor_adr is None else self._toe_sensor_adr.astype(np.intp)
+        self._sole_adr = self._sole_ids_by_foot.astype(np.intp)
+        self._hinge_adr = self.qpos_idx.astype(np.intp), self.qvel_idx.astype(np.intp)
+        self._torso_values, self._sensed = np.zeros(12), np.zeros(OBS_BASE)
+        self._obs_size, self._commands_at = obs_size, OBS_BASE + self.n_actions
 
     def _push(self) -> tuple[range, np.ndarray | None]:
         """The control steps k (1-based: the step that starts at (k - 1) Ts) the torso is pushed in, and the force."""
@@ -242,39 +261,36 @@ class PamWalkerEnv(gym.Env):
         speed = float(self.np_random.uniform(*cfg.speed_range_m_s)) if cfg.speed_range_m_s else cfg.target_speed_m_s
         ep = self.episode = self._new_episode(speed, float(self.np_random.uniform()) if self.gait_clock else 0.0)
         ep.x0 = float(d.qpos[0])
-        feet, state = self.foot_forces_n(), self._state()
-        ep.soles, ep.contact = self._feet(feet.tolist())
-        info = self._info(False, feet, self._fell(state), state)
+        _, forces, ep.soles, torso, obs = self._sense()
+        ep.contact = self._contact(forces)
+        info = self._info(False, forces, self._fell(torso), torso)
         if self.air_meter is not None:
             ep.gas, info["air_nl"] = self._gas(), np.float64(0.0)
         info["reward_terms"] = dict.fromkeys(REWARD_KEYS, 0.0)  # as after a step, so info's keys never change
         info["reward_unweighted"] = dict.fromkeys(REWARD_KEYS, 0.0)
-        return self._observation(feet, state), info
+        return obs, info
 
     def step(self, action):
-        action = self._command(action)
+        action, voltage = self._command(action)
         ep = self.episode
-        self._advance(action)
+        self._advance(action, voltage)
         ep.steps += 1
         previous, ep.prev_action = ep.prev_action, action
-        # MuJoCo resets the state itself when it meets NaN/Inf, so count its warnings too.
-        state = self._state()
-        physics_error = sum(_unstable_counts(self.data.warning.number.tolist())) > 0 or not _all_finite(*state[:2])
-        feet = self.foot_forces_n()
-        forces = feet.tolist()
-        soles, contact = self._feet(forces)
-        t = Transition(self, ep, state[2], state[0], action, previous, ep.soles, soles, ep.contact, contact, forces)
+        # MuJoCo resets the state itself when it meets NaN/Inf, so its warnings count too.
+        physics_error, forces, soles, torso, obs = self._sense()
+        contact = self._contact(forces)
+        t = Transition(self, ep, torso, self._qpos.tolist(), action, previous, ep.soles, soles, ep.contact, contact,
+                       forces)
         ep.soles, ep.contact = soles, contact
         if self.air_meter is not None:
             gas = self._gas()
             t.air_nl, ep.gas = self.air_meter.drawn_nl(ep.gas, gas), gas
-        obs = self._observation(feet, state)
         if physics_error:
             obs = np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
-        t.fell = fell = physics_error or self._fell(state)
+        t.fell = fell = physics_error or self._fell(torso)
         reward, terms, features = self.reward(None if physics_error else t)
         truncated = ep.steps >= self.max_steps and not fell
-        info = self._info(physics_error, feet, fell, state)
+        info = self._info(physics_error, forces, fell, torso)
         if self.air_meter is not None:
             info["air_nl"] = np.float64(t.air_nl)  # supply air drawn in this step [normal litres]
         info["reward_terms"], info["reward_unweighted"] = terms, features
@@ -295,20 +311,32 @@ class PamWalkerEnv(gym.Env):
 
     # ------------------------------------------------------------------ pieces
 
-    def _command(self, action) -> np.ndarray:
-        """The command applied: the action clipped to [-1, 1], low-passed with ``env.action_filter_alpha`` < 1."""
+    def _command(self, action) -> tuple[np.ndarray, np.ndarray | None]:
+        """The command applied: the action clipped to [-1, 1], low-passed with ``env.action_filter_alpha`` < 1;
+        and its regulator voltages, where :func:`pamrun.task.sensing.command_voltages` computes them (else None)."""
+        if self._voltages_compiled and type(action) is np.ndarray and action.shape == self.action_space.shape \
+                and action.dtype in (np.float32, np.float64):
+            command, voltage = np.empty(self.n_actions), np.empty((self.n_actions, 2))
+            self._command_voltages(action, self.muscle_cfg.v0_v, self._swing_v, command, voltage)
+            return command, voltage
         # np.clip(action, -1, 1) as two ufuncs (np.clip's Python wrapper costs more than both).
-        action = np.maximum(np.asarray(action, dtype=np.float64).reshape(self.n_actions), -1.0)
+        action = np.maximum(action, -1.0, dtype=np.float64)
+        if action.shape != self.action_space.shape:
+            action = action.reshape(self.n_actions)
         np.minimum(action, 1.0, out=action)
         alpha = self.env_cfg.action_filter_alpha
         if alpha < 1.0:
             action = alpha * action + (1.0 - alpha) * self.episode.prev_action
-        return action
+        return action, None
 
-    def _advance(self, action: np.ndarray) -> None:
-        """One control step of the muscles and MuJoCo under ``action`` (and the push, if in it)."""
+    def _advance(self, action: np.ndarray, voltage: np.ndarray | None) -> None:
+        """One control step of the muscles and MuJoCo under ``action`` (its ``voltage`` if computed) and
+        the push, if in it."""
         d = self.data
-        self.drive.set_action(action)
+        if voltage is None:
+            self.drive.set_action(action, clipped=self.env_cfg.action_filter_alpha >= 1.0)  # _command's clip
+        else:
+            self.drive.set_voltages(voltage)
         if self._push_steps:
             d.xfrc_applied[self._torso_id, :3] = self._push_force_n if self.episode.steps + 1 in self._push_steps else 0.0
         self.drive.advance(self.model, d, self.qpos_idx, self.qvel_idx, self.env_cfg.muscle_dt_s, self.n_muscle_steps,
@@ -318,61 +346,74 @@ class PamWalkerEnv(gym.Env):
         """qpos and qvel as Python lists, and from them the torso's (x, y, z, roll, pitch, yaw,
         vx, vy, vz, wx, wy, wz): read once per step for the observation, reward, fall check
         and info (Python floats: cheaper than numpy scalars, and the same values)."""
-        d = self.data
-        q, v = d.qpos.tolist(), d.qvel.tolist()
+        q, v = self._qpos.tolist(), self._qvel.tolist()
         return q, v, (*q[0:3], *quat_to_euler(q[3:7]), *v[0:6])
 
     def foot_forces_n(self) -> np.ndarray:
         """Normal ground force [N] under the right and left foot (MuJoCo touch sensors; with
         ``body.toe`` each foot's sum of its sole's and its toe's). Sensors are evaluated inside
         ``mj_step`` before integration, so the value lags the state by one physics step."""
-        forces = self.data.sensordata[self._foot_sensor_adr]  # fancy indexing: a copy
-        if self._toe_sensor_adr is not None:  # body.toe: the toe's touch sensor, under the same foot
-            forces += self.data.sensordata[self._toe_sensor_adr]
-        return forces
+        return np.array(self._foot_forces())
 
-    def _feet(self, foot_force_n: list[float]) -> tuple[np.ndarray, list[bool]]:
-        """The feet's contact points (2, 4, 3) now, and which are on the ground (under these forces [N])."""
-        soles = self.data.geom_xpos[self._sole_ids].reshape(2, -1, 3)  # fancy indexing: a copy
-        return soles, [f > self.contact_n for f in foot_force_n]
+    def _foot_forces(self) -> list[float]:
+        """:meth:`foot_forces_n` as a list (the same sums, as Python floats)."""
+        sensed = self._sensordata.tolist()
+        right, left = self._foot_sensors(sensed)
+        if self._toe_sensors is not None:  # body.toe: the toe's touch sensor, under the same foot
+            right_toe, left_toe = self._toe_sensors(sensed)
+            return [right + right_toe, left + left_toe]
+        return [right, left]
+
+    def _contact(self, foot_force_n: list[float]) -> list[bool]:
+        """Which feet are on the ground under these forces [N]."""
+        right, left = foot_force_n
+        return [right > self.contact_n, left > self.contact_n]
 
     def _gas(self) -> np.ndarray:
         """The muscles' gas P V [kPa l] now (the air meter's)."""
         return self.air_meter.gas_kpa_l(self.drive.pressure_kpa.ravel(), self.drive.contraction_pct.ravel())
 
-    def _observation(self, foot_force_n: np.ndarray, state: _State | None = None) -> np.ndarray:
-        q, v, (_, y, z, roll, pitch, yaw, *velocity) = self._state() if state is None else state
-        right, left = foot_force_n.tolist()
-        sensed = [y, z, roll, pitch, yaw, *velocity, *self._joint_angles(q), *self._joint_velocities(v),
-                  right / self.weight_n, left / self.weight_n]
-        if self.env_cfg.observation_noise_std > 0:
-            sensed = (np.asarray(sensed) + self.np_random.normal(0.0, self.env_cfg.observation_noise_std, OBS_BASE)).tolist()
-        # float64 values rounded once to float32, as np.concatenate(...).astype(np.float32) would
+    def _sense(self) -> tuple[bool, list[float], np.ndarray, list[float], np.ndarray]:
+        """What a step reads of the state now (:func:`pamrun.task.sensing.read_state`): whether the
+        physics blew up, the feet's forces [N], their contact points (2, 4, 3) [m], the torso's 12
+        values (x, y, z, roll, pitch, yaw, vx, vy, vz, wx, wy, wz) and the observation."""
         ep = self.episode
+        obs, soles = np.empty(self._obs_size, np.float32), np.empty(self._sole_adr.shape + (3,))
+        error, right, left = self._read_state(
+            self._qpos, self._qvel, self._sensordata, self._geom_xpos, self._warning_number, self._unstable,
+            self._foot_adr, self._toe_adr, self._sole_adr, *self._hinge_adr, self.weight_n, ep.prev_action,
+            self._torso_values, self._sensed, obs, soles)
+        if self.env_cfg.observation_noise_std > 0:  # rounded once to float32, as the noiseless values
+            obs[:OBS_BASE] = self._sensed + self.np_random.normal(0.0, self.env_cfg.observation_noise_std, OBS_BASE)
         command = [ep.target_speed_m_s] if self.speed_command else []
         if self.gait_clock:
             angle = 2 * math.pi * ep.phase(self.env_cfg)
             command += [math.sin(angle), math.cos(angle)]
-        return np.array([*sensed, *ep.prev_action.tolist(), *command], dtype=np.float32)
+        if command:
+            obs[self._commands_at:] = command
+        return error, [right, left], soles, self._torso_values.tolist(), obs
 
-    def _fell(self, state: _State | None = None) -> bool:
-        return fell_rule((self._state() if state is None else state)[2], self.z0, self.env_cfg)
+    def _fell(self, torso: list[float] | None = None) -> bool:
+        """Whether the robot has fallen (:func:`pamrun.task.criteria.fell`) with the torso's 12 values ``torso``."""
+        return fell_rule(self._state()[2] if torso is None else torso, self.z0, self.env_cfg)
 
-    def _info(self, physics_error: bool, foot_force_n: np.ndarray, fell: bool, state: _State | None = None
-              ) -> dict[str, Any]:
-        torso = (self._state() if state is None else state)[2]
-        x, y, z = np.float64(torso[0]), np.float64(torso[1]), np.float64(torso[2])  # TorchRL's info readers need .dtype
+    def _info(self, physics_error: bool, foot_force_n: list[float], fell: bool, torso: list[float]) -> dict[str, Any]:
+        """info without the reward's dicts (and ``air_nl``); numpy scalars: TorchRL's info readers need .dtype."""
+        x, y, z = torso[:3]
+        distance = np.float64(x - self.episode.x0)
+        if self.lean_info:
+            return {"distance": distance, "physics_error": np.bool_(physics_error)}
         return {
-            "x": x,
-            "y": y,
-            "z": z,
-            "distance": np.float64(x - self.episode.x0),
+            "x": np.float64(x),
+            "y": np.float64(y),
+            "z": np.float64(z),
+            "distance": distance,
             "pressure_kpa": self.drive.pressure_kpa.copy(),
             "contraction_pct": self.drive.contraction_pct.copy(),
-            "foot_force_n": foot_force_n,
+            "foot_force_n": np.array(foot_force_n),
             "sole_xyz_m": self.episode.soles,  # (2, 4, 3), this step's
-            "joint_torque_nm": self.data.qfrc_actuator[self.qvel_idx],
+            "joint_torque_nm": self._qfrc_actuator[self.qvel_idx],
             "fell": bool(fell),
-            "physics_error": np.bool_(physics_error),  # numpy: TorchRL's info reader needs a dtype
+            "physics_error": np.bool_(physics_error),
             "target_speed_m_s": np.float64(self.episode.target_speed_m_s),  # v*, this episode's
         }

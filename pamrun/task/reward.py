@@ -163,15 +163,16 @@ class Reward:
             raise ValueError(f"unknown reward features {unknown}; known: {', '.join(REWARD_KEYS)}")
         self.weights = {k: float(getattr(cfg, k)) for k in REWARD_KEYS}
         self.computed = tuple(k for k in REWARD_KEYS if self.weights[k] or k in features)
-        self._terms = [(k, TERMS[k]) for k in self.computed]
+        self._terms = [(k, TERMS[k], self.weights[k]) for k in self.computed]
         self._zeros = dict.fromkeys(REWARD_KEYS, 0.0)
+        self._zero_terms = {k: w * 0.0 for k, w in self.weights.items()}  # each weight x a feature of 0
 
     def __call__(self, t: Transition | None) -> tuple[float, dict[str, float], dict[str, float]]:
         """The reward, its weighted terms and its features, both by key (``t`` None: a step whose
         physics blew up, every feature 0)."""
-        features = self._zeros.copy()
+        features, terms = self._zeros.copy(), self._zero_terms.copy()
         if t is not None:
-            for key, feature in self._terms:
-                features[key] = feature(t)
-        terms = {k: w * features[k] for k, w in self.weights.items()}
+            for key, feature, weight in self._terms:
+                features[key] = value = feature(t)
+                terms[key] = weight * value
         return float(sum(terms.values())), terms, features
