@@ -1,6 +1,6 @@
 """Environment steps per second vs bare MuJoCo stepping of the same model.
 
-    python benchmarks/env_step.py [--seconds 5] [--repeats 5] [--presets sized thesis] [--models] [--timer cpu]
+    python benchmarks/env_step.py [--seconds 5] [--repeats 5] [--presets sized thesis] [--models] [--lean-info] [--timer cpu]
 
 Prints, per muscle preset, control steps/s of PamWalker-v0 with random actions and, in the same run, the
 rate of bare ``mj_step`` on the same model with the same number of physics substeps
@@ -98,9 +98,9 @@ def spread(values: list[float]) -> tuple[float, float, float]:
     return min(values), statistics.median(values), max(values)
 
 
-def measure(name: str, kernel: str, seconds: float, repeats: int, model: str = "") -> dict:
+def measure(name: str, kernel: str, seconds: float, repeats: int, model: str = "", lean_info: bool = False) -> dict:
     kwargs = merged({"muscle": {**preset("muscle", name), "kernel": kernel}}, {**MODELS, "clock": CLOCK}.get(model, {}))
-    env = PamWalkerEnv(**kwargs)
+    env = PamWalkerEnv(**kwargs, lean_info=lean_info)
     used = "numba" if env.drive.compiled else "numpy"  # the thesis coupling is numpy only
     ready_s = warm_up(env)
     rates_env, rates_bare, ratios = [], [], []
@@ -111,13 +111,14 @@ def measure(name: str, kernel: str, seconds: float, repeats: int, model: str = "
     env.close()
     (e_lo, e_med, e_hi), (b_lo, b_med, b_hi) = spread(rates_env), spread(rates_bare)
     r_lo, r_med, r_hi = spread(ratios)
-    label = f"{name}{' + ' + model if model else ''} ({env.muscle_cfg.coupling}, {used})"
+    label = f"{name}{' + ' + model if model else ''} ({env.muscle_cfg.coupling}, {used}{', lean info' * lean_info})"
     print(f"{label:>40}: env {e_med:7.1f} [{e_lo:7.1f}-{e_hi:7.1f}] control steps/s | bare MuJoCo {b_med:7.1f} "
           f"[{b_lo:7.1f}-{b_hi:7.1f}] ({env.n_substeps} x {env.model.opt.timestep * 1000:.1f} ms) | "
           f"ratio {r_med:.3f} [{r_lo:.3f}-{r_hi:.3f}]  (warm-up {ready_s:.2f} s)")
     return {
         "preset": name,
         "model": model or "today",
+        "info": "lean" if lean_info else "full",
         "coupling": env.muscle_cfg.coupling,
         "kernel": used,
         "physics_dt_s": env.model.opt.timestep,
@@ -142,6 +143,8 @@ def main() -> None:
     parser.add_argument("--presets", nargs="+", default=["sized", "thesis"])
     parser.add_argument("--models", action="store_true", help="the sized preset with each pneumatic model")
     parser.add_argument("--clock", action="store_true", help="the sized preset with the gait clock and its demands")
+    parser.add_argument("--lean-info", action="store_true",
+                        help="the env as training builds it: info holds only what training reads (lean_info=True)")
     parser.add_argument("--timer", choices=CLOCKS, default="wall",
                         help="wall clock, or this thread's CPU time (on a machine shared with other work)")
     args = parser.parse_args()
@@ -151,11 +154,11 @@ def main() -> None:
     results = []
     for model in ("", *MODELS) if args.models else ("", "clock") if args.clock else ():
         for kernel in ("numba", "numpy"):
-            results.append(measure("sized", kernel, args.seconds, args.repeats, model))
+            results.append(measure("sized", kernel, args.seconds, args.repeats, model, args.lean_info))
     for name in () if args.models or args.clock else args.presets:
         coupling = preset("muscle", name).get("coupling", MuscleConfig().coupling)
         for kernel in (("numba", "numpy") if coupling == "kinematic" else ("numpy",)):
-            results.append(measure(name, kernel, args.seconds, args.repeats))
+            results.append(measure(name, kernel, args.seconds, args.repeats, lean_info=args.lean_info))
     out = Path(__file__).parent / "results" / "env_step.jsonl"
     out.parent.mkdir(exist_ok=True)
     stamp = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "machine": platform.node(), "cpu_count": os.cpu_count()}

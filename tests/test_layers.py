@@ -11,7 +11,6 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-
 import pamrun
 from pamrun.config import DYNAMICS_NAMES, FORCE_LAW_NAMES
 from pamrun.physics import muscle

@@ -122,9 +122,8 @@ def test_a_checkpoint_with_the_terms_as_one_array_resumes(tmp_path):
     from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
     from pamrun.learning.checkpoints import ARRAY_TERMS, file_fingerprints
-    from pamrun.runs.directory import LAST
     from pamrun.learning.curriculum import FEATURES
-    from pamrun.runs.directory import saved_config
+    from pamrun.runs.directory import LAST, saved_config
 
     run = tmp_path / "run"
     assert train_here(run, *TINY, "train.max_frames=400", "train.eval_every_frames=0") == "max_frames"

@@ -14,7 +14,7 @@ Both files carry the same metadata as ``export.json`` beside them: in ONNX the m
 JSON object with
 
 * ``observation_layout``: each block of the observation as ``[start, stop]``
-  (:func:`pamrun.task.env.observation_structure`) and ``observation_units`` its unit;
+  (:func:`pamrun.task.observation.observation_structure`) and ``observation_units`` its unit;
 * ``action``: a in [-1, 1], one per joint in ``pamrun.physics.body.JOINTS`` order (``names``), or
   one per muscle with ``muscle.command=independent``; the voltages V = V0 +- dV a
   (``v0_v``, ``dv_max_v``, ``voltage``), the regulator's ``gain_kpa_per_v`` and the clipping

@@ -338,7 +338,10 @@ def muscle_apply(voltage, new_voltage, stale, lag_factor, params, target, pressu
 
 
 def mj_step_address() -> int:
-    """The address of MuJoCo's C ``mj_step(m, d)`` in the library the bindings use (0: not found)."""
+    """The address of MuJoCo's C ``mj_step(m, d)`` in the library the bindings use (0: not found,
+    or bindings that do not expose their structs' addresses)."""
+    if not hasattr(mujoco.MjModel, "_address") or not hasattr(mujoco.MjData, "_address"):
+        return 0
     folder = os.path.dirname(mujoco.__file__)
     for name in ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll"):
         for path in sorted(glob.glob(os.path.join(folder, name))):

@@ -85,18 +85,15 @@ from pamrun.physics import body as body_mod
 from pamrun.physics.actuation import MuscleDrive, joint_limits_rad, muscle_counts
 from pamrun.physics.muscle import AirMeter
 from pamrun.task import clock
-from pamrun.task.clock import foot_miss, gait_at_speed, swing_weights  # noqa: F401 (the env's names)
+from pamrun.task.clock import gait_at_speed
 from pamrun.task.criteria import fell as fell_rule
 from pamrun.task.measures import CONTACT_WEIGHT_SHARE, KNEES, STOP_MARGIN_DEG, stop_bounds
-from pamrun.task.observation import (  # noqa: F401 (the env's names)
+from pamrun.task.observation import (
     N_JOINTS,
     OBS_BASE,
-    OBS_SIZE,
-    OBSERVATION_UNITS,
     obs_size,
     observation_structure,
     quat_to_euler,
-    space_sizes,
 )
 from pamrun.task.reward import REWARD_KEYS, Reward, Transition
 
@@ -154,15 +151,7 @@ class PamWalkerEnv(gym.Env):
         self.render_mode, self.width, self.height = render_mode, width, height
         self._renderer: mujoco.Renderer | None = None
         cfg = self.env_cfg
-        self.model = body_mod.build_model(self.body_cfg, timestep_s=cfg.physics_dt_s)
-        self.data = mujoco.MjData(self.model)
-        d = self.data  # its arrays, as views read every step (MjData's memory never moves)
-        self._qpos, self._qvel, self._sensordata, self._geom_xpos = d.qpos, d.qvel, d.sensordata, d.geom_xpos
-        self._qfrc_actuator, self._warning_number = d.qfrc_actuator, d.warning.number
-        self.n_muscle_steps = int(round(cfg.control_dt_s / cfg.muscle_dt_s))
-        self.n_physics_per_muscle = int(round(cfg.muscle_dt_s / cfg.physics_dt_s))
-        self.n_substeps = self.n_muscle_steps * self.n_physics_per_muscle  # MuJoCo steps per control step
-        self.max_steps = int(round(cfg.episode_s / cfg.control_dt_s))
+        self._build_physics(cfg)
         self.drive = MuscleDrive(self.muscle_cfg, self.body_cfg)
         self.n_actions = self.drive.n_actions
         self.action_space = gym.spaces.Box(-1.0, 1.0, (self.n_actions,), np.float32)
@@ -177,6 +166,18 @@ class PamWalkerEnv(gym.Env):
         self.air_meter = AirMeter(self.muscle_cfg.nominal_length_m, MUSCLE_INNER_DIAMETER_M[self.muscle_cfg.size],
                                   muscle_counts(self.muscle_cfg)) if "kair" in self.reward.computed else None
         self.episode = self._new_episode(cfg.target_speed_m_s)
+
+    def _build_physics(self, cfg: EnvConfig) -> None:
+        """The MuJoCo model and data, the views of its arrays read every step, and the step counts."""
+        self.model = body_mod.build_model(self.body_cfg, timestep_s=cfg.physics_dt_s)
+        self.data = d = mujoco.MjData(self.model)
+        # views read every step (MjData's memory never moves)
+        self._qpos, self._qvel, self._sensordata, self._geom_xpos = d.qpos, d.qvel, d.sensordata, d.geom_xpos
+        self._qfrc_actuator, self._warning_number = d.qfrc_actuator, d.warning.number
+        self.n_muscle_steps = int(round(cfg.control_dt_s / cfg.muscle_dt_s))
+        self.n_physics_per_muscle = int(round(cfg.muscle_dt_s / cfg.physics_dt_s))
+        self.n_substeps = self.n_muscle_steps * self.n_physics_per_muscle  # MuJoCo steps per control step
+        self.max_steps = int(round(cfg.episode_s / cfg.control_dt_s))
 
     def _read_model(self) -> None:
         """The model's addresses and constants the steps read (as Python numbers where read every step)."""

@@ -41,23 +41,23 @@ class RandomizedWalker(gym.Env):
 
     def __init__(self, spec: EnvSpec, perturbations: dict[str, Any], prob: float, reach: float,
                  count: int = 1, weights: dict[str, float] | None = None, reaches: dict[str, float] | None = None,
-                 features: tuple[str, ...] = ()):
-        self.features = tuple(features)  # reward terms computed at any weight (PamWalkerEnv's ``features``)
+                 options: dict[str, Any] | None = None):
+        self.options = dict(options or {})  # PamWalkerEnv's keyword arguments beyond the spec (features, lean_info)
         self.nominal_spec, self.perturbations, self.prob, self.count = spec, perturbations, prob, count
         self.reach = {n: (reaches or {}).get(n, reach) for n in perturbations}  # each name's reach
         self.names = sorted(perturbations)
         w = np.array([(weights or {}).get(n, 1.0) for n in self.names])
         self.p = w / w.sum() if weights else None  # draw probabilities in names order (None: uniform)
-        self.nominal = self.env = spec.make(features=self.features)
+        self.nominal = self.env = spec.make(**self.options)
         self.action_space, self.observation_space = self.env.action_space, self.env.observation_space
         self.drawn: tuple[tuple[str, float], ...] = ()  # this episode's perturbations and strengths
 
     @classmethod
-    def from_config(cls, spec: EnvSpec, cfg: Config, features: tuple[str, ...] = ()) -> RandomizedWalker:
+    def from_config(cls, spec: EnvSpec, cfg: Config, options: dict[str, Any] | None = None) -> RandomizedWalker:
         """The env ``cfg.train``'s randomisation settings describe, around the robot and task ``spec``."""
         t = cfg.train
         return cls(spec, {n: cfg.eval.perturbations[n] for n in t.randomize}, t.randomize_prob, t.randomize_reach,
-                   t.randomize_count, t.randomize_weights, t.randomize_reaches, features)
+                   t.randomize_count, t.randomize_weights, t.randomize_reaches, options)
 
     def draw(self) -> EnvSpec:
         """This episode's robot and task (and ``self.drawn``)."""
@@ -87,7 +87,7 @@ class RandomizedWalker(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         spec = self.draw()
-        new = self.nominal if spec is self.nominal_spec else spec.make(features=self.features)
+        new = self.nominal if spec is self.nominal_spec else spec.make(**self.options)
         if self.env is not self.nominal and self.env is not new:
             self.env.close()
         self.env = new

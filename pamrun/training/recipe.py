@@ -58,9 +58,10 @@ def make_env(cfg: Config, seed: int | None = None):
     reset (else its start noise comes from the OS)."""
 
 
-    spec, t, features = EnvSpec.from_config(cfg), cfg.train, reweighted_terms(cfg)  # the curriculum's terms
-    env = GymWrapper(randomize.RandomizedWalker.from_config(spec, cfg, features) if t.randomize
-                     else gym.make("pamrun/PamWalker-v0", **spec.sections(), features=features))
+    # the terms the curriculum may re-weight, computed at any weight; info only as far as training reads it
+    spec, options = EnvSpec.from_config(cfg), {"features": reweighted_terms(cfg), "lean_info": True}
+    env = GymWrapper(randomize.RandomizedWalker.from_config(spec, cfg, options) if cfg.train.randomize
+                     else gym.make("pamrun/PamWalker-v0", **spec.sections(), **options))
     info = {"distance": Unbounded((), dtype=torch.float64), "physics_error": Unbounded((), dtype=torch.bool)}
     env.set_info_dict_reader(default_info_dict_reader(list(info), spec=info))
     env.set_info_dict_reader(FeatureReader())  # the reward's terms by key, for the curriculum
