@@ -1,0 +1,64 @@
+"""Fingerprints of pamrun's behaviour, for a change that must not alter a number (a refactor).
+
+    python benchmarks/behaviour_hashes.py [--out DIR]
+
+Runs, with fixed seeds, ``pamrun train experiment=thesis train=smoke``, a 5,000-frame
+``pamrun train experiment=walker`` (evaluating every 2,500 frames) and ``pamrun eval`` of the
+shipped walker, then prints the md5 of ``episodes.csv`` and ``evals.csv`` (their rows without
+the wall-clock columns) and of the evaluation's ``episodes.jsonl``, each with its row count.
+Equal lines before and after a change mean the same training and the same evaluation, bit for
+bit, on this machine (floating point may differ on another CPU). On 2026-12-04 (2-core x86_64),
+before and after the package split of issue 36:
+
+    thesis episodes.csv 70de23038aed4b11fe84624719bcc4a0 31
+    thesis evals.csv f29be19dba198172d7cd7cde1a7d388e 3
+    walker episodes.csv 72c90ea8b2ec3d3aac7ad82a2b38f60b 66
+    walker evals.csv 2d2ec5b2bd4c8d08e0c21db87b68aee2 2
+    eval episodes.jsonl 7f0f6c6f75f0b45d1f738f1a43f0c7f3 50
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import hashlib
+import subprocess
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+WALL_CLOCK = {"wall_time_s", "eval_s"}
+RUNS = {
+    "thesis": ["train", "experiment=thesis", "train=smoke", "seed=0"],
+    "walker": ["train", "experiment=walker", "train.max_frames=5000", "train.eval_every_frames=2500", "seed=0"],
+    "eval": ["eval", f"ckpt={ROOT / 'agents' / 'walker_td3_seed0.pt'}"],
+}
+
+
+def csv_hash(path: Path) -> tuple[str, int]:
+    rows = list(csv.DictReader(path.open()))
+    text = "\n".join(",".join(f"{k}={v}" for k, v in row.items() if k not in WALL_CLOCK) for row in rows)
+    return hashlib.md5(text.encode()).hexdigest(), len(rows)
+
+
+def jsonl_hash(path: Path) -> tuple[str, int]:
+    lines = path.read_text().splitlines()
+    return hashlib.md5("\n".join(lines).encode()).hexdigest(), len(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=None, help="where the runs go (default: a temporary folder)")
+    args = parser.parse_args()
+    out = args.out or Path(tempfile.mkdtemp(prefix="pamrun-hashes-"))
+    for name, command in RUNS.items():
+        subprocess.run(["pamrun", *command, f"hydra.run.dir={out / name}"], check=True, cwd=ROOT,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    for name in ("thesis", "walker"):
+        for file in ("episodes.csv", "evals.csv"):
+            print(name, file, *csv_hash(out / name / file))
+    print("eval episodes.jsonl", *jsonl_hash(out / "eval" / "episodes.jsonl"))
+
+
+if __name__ == "__main__":
+    main()
