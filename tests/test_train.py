@@ -67,11 +67,20 @@ def test_train_leaves_its_files(tmp_path, algo):
 
 @pytest.mark.slow
 def test_threshold_not_reached_saves_nothing(tmp_path):
+    """Also: its stdout is a pipe, so its progress is plain lines (the first batch's, one after the
+    evaluation at 400 frames, the last), with the budget's fraction, time remaining and evaluation."""
+    import re
+
     run_dir = tmp_path / "none"
     proc = run_pamrun("train", *TINY, "train.max_frames=400", "train.save_threshold=1e9", f"hydra.run.dir={run_dir}")
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert not list((run_dir / "checkpoints").glob("agent_*.pt"))
     assert (run_dir / ".hydra" / "config.yaml").exists()  # the command: Hydra's run directory
+    lines = [line for line in proc.stdout.splitlines() if line.startswith("frames ")]
+    assert re.fullmatch(r"frames 200/400 \(50\.0%\)  eta \S+  \d+ frames/s  \S+ updates/s  episodes \d+  avg .*",
+                        lines[0])
+    assert lines[-1].startswith("frames 400/400 (100.0%)  eta 0s") and re.search(
+        r"  eval: stand \d+/2 walk \d/2 \(\d+-\d+ %\)$", lines[-1])
 
 
 @pytest.mark.slow

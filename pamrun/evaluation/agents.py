@@ -68,7 +68,7 @@ def run_all(agents: list[Agent], envs: list[EnvSpec], ecfg, console, what: str =
 
     def tick() -> None:
         done[0] += 1
-        progress.update(done[0], f"of {len(agents) * ecfg.episodes}")
+        progress.update(done[0])
 
     try:
         results = evaluate_agents(agents, envs, ecfg.episodes, ecfg.seed, workers, on_episode=tick,

@@ -6,6 +6,7 @@ A leaf: it imports no other pamrun module, so every command can use it.
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import time
@@ -15,14 +16,9 @@ from typing import Any, Callable
 
 from hydra.core.hydra_config import HydraConfig
 from rich.console import Console
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
+from rich.progress import BarColumn, TextColumn
 from rich.progress import Progress as RichProgress
+from rich.table import Column
 
 # Outside a terminal (a log file, a pipe, CI) the console is this wide, so that no table cuts a
 # cell with "…" and no path is broken: rich draws a table only as wide as its content.
@@ -90,29 +86,59 @@ def package_versions() -> dict[str, str]:
                                              "numpy", "hydra-core")}
 
 
+def duration(seconds: float | None) -> str:
+    """'1h02m', '5m03s', '42s': a duration as a progress line shows it; '?' when unknown."""
+    if seconds is None or not math.isfinite(seconds):
+        return "?"
+    s = max(0, round(seconds))
+    if s >= 3600:
+        return f"{s // 3600}h{s % 3600 // 60:02d}m"
+    return f"{s // 60}m{s % 60:02d}s" if s >= 60 else f"{s}s"
+
+
 class Progress:
-    """A rich progress bar with ETA on a terminal; a plain line every ~10 s otherwise (CI, files)."""
+    """A progress bar on a terminal; outside one (CI, a file, a pipe) or with
+    ``PAMRUN_PROGRESS=lines`` (sweep jobs share a terminal) a plain line every ``every_s`` seconds.
 
-    def __init__(self, console, total: int, done: int, unit: str = "frames"):
-        self.console = console
-        self.unit = unit
-        self.bar = None
-        self.last_line = 0.0
-        if console.is_terminal and os.environ.get("PAMRUN_PROGRESS") != "lines":  # sweep jobs share a terminal
-            self.bar = RichProgress(TextColumn(unit), BarColumn(), MofNCompleteColumn(),
-                                    TextColumn("{task.fields[info]}"), TimeElapsedColumn(), TextColumn("ETA"),
-                                    TimeRemainingColumn(), console=console)
-            self.task = self.bar.add_task(unit, total=total, completed=done, info="")
+    :meth:`update` counts ``done`` of ``total`` ``unit`` with the time remaining at the rate since
+    the start; :meth:`show` takes the fraction and the line from the caller (training's budgets).
+    ``clock``: seconds, monotonic (tests pass their own)."""
 
-    def update(self, done: int, info: str) -> None:
+    def __init__(self, console, total: int, done: int = 0, unit: str = "frames", every_s: float = 10.0,
+                 clock: Callable[[], float] = time.monotonic):
+        self.console, self.total, self.unit, self.every_s, self.clock = console, total, unit, every_s, clock
+        self.start = (clock(), done)
+        self.bar, self.last_line, self.pending = None, -math.inf, ""
+        if console.is_terminal and os.environ.get("PAMRUN_PROGRESS") != "lines":
+            text = TextColumn("{task.fields[text]}", markup=False, table_column=Column(overflow="fold"))
+            self.bar = RichProgress(BarColumn(bar_width=30), text, console=console)  # long text: on more lines
+            self.task = self.bar.add_task(unit, total=1.0, completed=done / total if total else 0.0, text="")
+
+    def update(self, done: int, info: str = "") -> None:
+        """``done`` of the total, with ``info`` after the time remaining."""
+        fraction = done / self.total if self.total else 1.0
+        (t0, done0), now = self.start, self.clock()
+        rate = (done - done0) / (now - t0) if done > done0 and now > t0 else None
+        eta = (self.total - done) / rate if rate else None
+        self.show(fraction, f"{self.unit} {done}/{self.total} ({fraction:.1%})  eta {duration(eta)}  {info}".rstrip())
+
+    def show(self, fraction: float, text: str, now: bool = False) -> None:
+        """The bar at ``fraction`` with ``text``; or ``text`` as a line if ``every_s`` have passed
+        since the last (at once with ``now``)."""
         if self.bar is not None:
             if not self.bar.live.is_started:  # started on first use: worker processes fork before its thread
                 self.bar.start()
-            self.bar.update(self.task, completed=done, info=info)
-        elif time.monotonic() - self.last_line > 10:
-            self.last_line = time.monotonic()
-            self.console.print(f"{self.unit} {done}  {info}", soft_wrap=True)
+            self.bar.update(self.task, completed=min(fraction, 1.0), text=text)
+        elif now or self.clock() - self.last_line >= self.every_s:
+            self.last_line, self.pending = self.clock(), ""
+            self.console.print(text, soft_wrap=True, markup=False, highlight=False)
+        else:
+            self.pending = text
 
     def stop(self) -> None:
+        """The bar stopped; outside a terminal, the latest line if it was not printed."""
         if self.bar is not None:
             self.bar.stop()
+        elif self.pending:
+            self.console.print(self.pending, soft_wrap=True, markup=False, highlight=False)
+            self.pending = ""

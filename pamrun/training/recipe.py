@@ -38,14 +38,15 @@ from pamrun.learning import checkpoints, networks
 from pamrun.learning.curriculum import FeatureReader, WalkCurriculum, reweighted_terms
 from pamrun.runs import directory
 from pamrun.runs.directory import EVAL_FIELDS, CsvLog, EpisodeLog, RunFiles
-from pamrun.runs.files import Progress, run_dir
 from pamrun.runs.files import console as make_console
+from pamrun.runs.files import run_dir
 from pamrun.runs.machine import Terminated, stop_signals, usable_cores
 from pamrun.task import randomize
 from pamrun.task.observation import space_sizes
 from pamrun.task.spec import EnvSpec
 from pamrun.task.symmetry import mirror_batch
 from pamrun.training.console import end_of_run, header_table, summary_table
+from pamrun.training.progress import TrainingProgress
 
 NEW_RUN = {"frames": 0, "episodes": 0, "updates": 0, "wall_time_s": 0.0}  # a run's counters at its start
 check_config = directory.check_resume  # pamrun.cli runs it before any directory exists
@@ -180,7 +181,7 @@ class Run:
             console.print(curriculum.describe(), soft_wrap=True)
         self.saved = checkpoints.scan_saved(self.files.checkpoints)
         self.clock = Clock(counters["wall_time_s"])
-        self.progress = Progress(console, cfg.train.max_frames, self.frames)
+        self.progress = TrainingProgress(console, cfg.train, self.counters(), curriculum)
 
     def counters(self) -> dict:
         return {"frames": self.frames, "episodes": self.log.episodes, "updates": self.learner.updates,
@@ -233,9 +234,7 @@ class Run:
         w.add_scalar("throughput/frames_per_s", self.frames / elapsed, self.frames)
         w.add_scalar("throughput/updates_per_s", self.learner.updates / elapsed, self.frames)
         w.add_scalar("exploration/noise_std", self.noise_std, self.frames)
-        self.progress.update(self.frames, f"episodes {self.log.episodes}  avg {self.log.average():.2f}  best "
-                             f"{self.log.best:.2f}  {self.frames / elapsed:.0f} frames/s  "
-                             f"{self.learner.updates / elapsed:.1f} updates/s")
+        self.progress.update(self.counters(), f"avg {self.log.average():.2f}  best {self.log.best:.2f}")
         if self.frames % t.checkpoint_every_frames < n:
             self.log.sync()
             checkpoints.save_last(self.files.checkpoints, self.cfg, self.learner, self.buffer, self.counters())
@@ -250,6 +249,7 @@ class Run:
                 self.log.writer.add_scalar(f"curriculum/{key}", weight, self.frames)
             self.info["walk_kvx_from_frames"] = self.frames
             self.console.print(self.curriculum.describe(), soft_wrap=True)
+        self.progress.evaluated(result, self.counters())
         return result
 
     def close(self, status: str) -> None:
