@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import math
+import pickle
 from dataclasses import asdict
 
 import gymnasium as gym
@@ -285,6 +286,15 @@ def test_follow_camera_keeps_the_robot_centred_and_the_fixed_one_stays():
     (column, tall), (moved_column, _) = seen["fixed"]
     assert abs(column - seen["follow"][0][0]) < 0.01 and abs(tall - seen["follow"][0][1]) < 0.01  # the same start
     assert moved_column > 0.75
+
+
+def test_an_env_with_a_camera_pickles():
+    e = PamWalkerEnv(render_mode="rgb_array", width=160, height=120)
+    e.reset(seed=0)
+    copy = pickle.loads(pickle.dumps(e))
+    assert copy.camera.name == "follow" and copy.render().shape == (120, 160, 3)
+    copy.close()
+    e.close()
 
 
 def test_unknown_camera_fails():

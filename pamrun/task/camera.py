@@ -17,6 +17,7 @@ import os
 # Rendering headless: MuJoCo reads MUJOCO_GL when it is first imported, so it is set before.
 os.environ.setdefault("MUJOCO_GL", "egl")
 import mujoco
+import numpy as np
 
 from pamrun.config import CAMERAS
 from pamrun.physics import body as body_mod
@@ -28,22 +29,25 @@ AIM_PER_HEIGHT = 0.32  # the aim's height above the floor per metre of body heig
 
 
 class Camera:
-    """One of :data:`pamrun.config.CAMERAS` for a model of a robot ``height_m`` tall; ValueError for another name."""
+    """One of :data:`pamrun.config.CAMERAS` for a model of a robot ``height_m`` tall; ValueError for
+    another name. Plain numbers only (MuJoCo's MjvCamera does not pickle; the env does)."""
 
     def __init__(self, name: str, model: mujoco.MjModel, height_m: float):
         if name not in CAMERAS:
             raise ValueError(f"camera must be one of {', '.join(CAMERAS)}, got {name!r}")
-        self.name = name
+        self.name, self.distance_m = name, DISTANCE_PER_HEIGHT * height_m
         self._torso = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body_mod.TORSO)
-        self.view: mujoco.MjvCamera | str = body_mod.CAMERA
-        if name != "three_quarter":
-            self.view = view = mujoco.MjvCamera()
-            view.type = mujoco.mjtCamera.mjCAMERA_FREE
-            view.azimuth, view.elevation, view.distance = AZIMUTH_DEG, ELEVATION_DEG, DISTANCE_PER_HEIGHT * height_m
-            view.lookat[:] = [*model.body_pos[self._torso, :2], AIM_PER_HEIGHT * height_m]  # where the torso starts
+        self.lookat = np.array([*model.body_pos[self._torso, :2], AIM_PER_HEIGHT * height_m])  # where the torso starts
 
     def update_scene(self, renderer: mujoco.Renderer, data: mujoco.MjData) -> None:
         """``renderer``'s scene of ``data`` from this camera; ``follow`` aims at the torso first."""
+        if self.name == "three_quarter":
+            renderer.update_scene(data, camera=body_mod.CAMERA)
+            return
         if self.name == "follow":
-            self.view.lookat[:2] = data.xpos[self._torso, :2]  # the torso as drawn (xpos: the drawn poses)
-        renderer.update_scene(data, camera=self.view)
+            self.lookat[:2] = data.xpos[self._torso, :2]  # the torso as drawn (xpos: the drawn poses)
+        view = mujoco.MjvCamera()
+        view.type = mujoco.mjtCamera.mjCAMERA_FREE
+        view.azimuth, view.elevation, view.distance = AZIMUTH_DEG, ELEVATION_DEG, self.distance_m
+        view.lookat[:] = self.lookat
+        renderer.update_scene(data, camera=view)
