@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import math
+import pickle
 from dataclasses import asdict
 
 import gymnasium as gym
@@ -13,7 +14,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import pamrun  # noqa: F401  (registers the env)
-from pamrun.config import ConfigError, RewardConfig
+from pamrun.config import CAMERAS, ConfigError, RewardConfig
 from pamrun.physics.body import JOINTS
 from pamrun.task.env import PamWalkerEnv
 from pamrun.task.observation import quat_to_euler
@@ -247,12 +248,58 @@ def test_info_has_muscle_state(coupling):
         assert key in info
 
 
-def test_render_rgb_array():
-    e = PamWalkerEnv(render_mode="rgb_array", width=160, height=120)
+@pytest.mark.parametrize("camera", CAMERAS)
+def test_render_rgb_array(camera):
+    e = PamWalkerEnv(render_mode="rgb_array", width=160, height=120, camera=camera)
     e.reset(seed=0)
     frame = e.render()
     assert frame.shape == (120, 160, 3) and frame.std() > 5
     e.close()
+
+
+def _legs_in(frame: np.ndarray) -> tuple[float, float]:
+    """Where the robot's legs are in ``frame``: their mean column and the rows they span, each as a
+    share of the frame's width or height (the legs are orange, red well above blue; floor and sky
+    are grey and blue)."""
+    rgb = frame.astype(int)
+    rows, columns = np.nonzero(rgb[..., 0] > rgb[..., 2] + 40)
+    if len(rows) == 0:
+        return float("nan"), 0.0
+    return float(columns.mean() / frame.shape[1]), float((rows.max() - rows.min() + 1) / frame.shape[0])
+
+
+def test_follow_camera_keeps_the_robot_centred_and_the_fixed_one_stays():
+    """The torso 1 m forward (qpos): the following camera keeps the legs mid-picture and as tall;
+    the fixed one sees them move right (side-on, forward is to the right)."""
+    seen = {}
+    for camera in ("follow", "fixed"):
+        e = PamWalkerEnv(render_mode="rgb_array", width=160, height=120, camera=camera)
+        e.reset(seed=0)
+        start = _legs_in(e.render())
+        e.data.qpos[0] += 1.0
+        mujoco.mj_forward(e.model, e.data)
+        seen[camera] = start, _legs_in(e.render())
+        e.close()
+    (column, tall), (moved_column, moved_tall) = seen["follow"]
+    assert abs(column - 0.5) < 0.05 and abs(moved_column - 0.5) < 0.05
+    assert tall > 0.4 and abs(moved_tall - tall) < 0.05  # the legs fill a good part of the picture, then as much
+    (column, tall), (moved_column, _) = seen["fixed"]
+    assert abs(column - seen["follow"][0][0]) < 0.01 and abs(tall - seen["follow"][0][1]) < 0.01  # the same start
+    assert moved_column > 0.75
+
+
+def test_an_env_with_a_camera_pickles():
+    e = PamWalkerEnv(render_mode="rgb_array", width=160, height=120)
+    e.reset(seed=0)
+    copy = pickle.loads(pickle.dumps(e))
+    assert copy.camera.name == "follow" and copy.render().shape == (120, 160, 3)
+    copy.close()
+    e.close()
+
+
+def test_unknown_camera_fails():
+    with pytest.raises(ValueError, match="camera must be one of follow, fixed, three_quarter"):
+        PamWalkerEnv(camera="overhead")
 
 
 def test_gymnasium_vector_env():

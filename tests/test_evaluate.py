@@ -97,6 +97,7 @@ def test_a_physics_blow_up_fails_the_walk_test_and_ranks_last():
     ("eval.episodes=0", "eval.episodes"),
     ("eval.walk_duration_s=12", "eval.walk_duration_s"),
     ("eval.video_width=641", "eval.video_width"),
+    ("eval.camera=bogus", "eval.camera"),
 ])
 def test_impossible_eval_values_name_the_key(override, key):
     with pytest.raises(ConfigError) as err:
@@ -126,6 +127,27 @@ def test_episode_metrics_agree_with_its_steps(tmp_path):
     assert len(steps["pressure_kpa"][0]) == 20 and len(steps["joint_angle_rad"][0]) == 10
 
 
+def test_video_frame_strip_and_gif(tmp_path):
+    """An episode's video from each camera, its frame strip and its GIF: the frames picked as asked."""
+    from PIL import Image
+
+    from pamrun.evaluation.figures import video_frames
+    from pamrun.evaluation.video import frame_picks, record_video, write_gif
+
+    assert frame_picks([0.025 * k for k in range(401)], 8, 0.1) == list(range(186, 215, 4))  # 8 x 4 steps, mid-video
+    assert frame_picks([0.025 * k for k in range(11)], 8, 0.1) == [0, 1, 3, 4, 6, 7, 9, 10]  # too short: over all of it
+    assert frame_picks([0.025 * k for k in range(401)], 3, 0.05, from_start=True) == [0, 2, 4]
+    cfg = to_object(compose_config("eval.episode_s=0.5", "eval.walk_duration_s=0.5"))
+    spec = agent_env(_fake_agent(tmp_path), cfg)
+    for camera in ("fixed", "follow"):  # the last one's video is read below
+        video = record_video(_fake_agent(tmp_path), spec, 0, 160, 120, tmp_path / "episode.mp4", camera)
+    assert video["frames"] == round(video["duration_s"] / 0.025) + 1 >= 2
+    video_frames(tmp_path / "episode.mp4", tmp_path / "frames.png", width_share=0.6)
+    assert Image.open(tmp_path / "frames.png").width > 100
+    gif = Image.open(write_gif(tmp_path / "episode.mp4", tmp_path / "episode.gif", seconds=0.2, width=80))
+    assert gif.size == (80, 60) and gif.n_frames == 4 and gif.info["duration"] == 50 and gif.info["loop"] == 0
+
+
 # --------------------------------------------------------------------------- a real trained run
 
 
@@ -147,7 +169,8 @@ def test_eval_of_a_run_directory_end_to_end(trained_run, tmp_path):
                       "eval.video_width=320", "eval.video_height=240", f"hydra.run.dir={out}")
     assert proc.returncode == 0, proc.stderr[-3000:]
     for name in ("episodes.jsonl", "leaderboard.csv", "leaderboard.json", "best.pt", "selection.json",
-                 "trajectories.png", "pressures.png", "training.png", "best_episode.mp4", "best_episode_frames.png"):
+                 "trajectories.png", "pressures.png", "training.png", "best_episode.mp4", "best_episode_frames.png",
+                 "best_episode.gif"):
         assert (out / name).stat().st_size > 0, name
     board = json.loads((out / "leaderboard.json").read_text())
     # two threshold saves, the best by the evaluations during training, the final agent (last.pt)

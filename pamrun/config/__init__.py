@@ -23,6 +23,7 @@ from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
 from pamrun.config.checks import CONF_DIR, ConfigError, _require
 from pamrun.config.experiments import (
+    CAMERAS,
     JOB_METRICS,
     RANK_METRICS,
     EvalConfig,
@@ -51,7 +52,7 @@ from pamrun.config.robot import (
 )
 from pamrun.config.task import ENV_SECTIONS, EnvConfig, RewardConfig
 
-__all__ = ["CONF_DIR", "SPRING_FILE", "JOB_METRICS", "RANK_METRICS", "FORCE_LAW_NAMES", "DYNAMICS_NAMES", "ConfigError",
+__all__ = ["CONF_DIR", "SPRING_FILE", "CAMERAS", "JOB_METRICS", "RANK_METRICS", "FORCE_LAW_NAMES", "DYNAMICS_NAMES", "ConfigError",
            "Config", "LEG_JOINTS", "RegulatorConfig", "SpringConfig", "MuscleConfig", "JointAngles", "JointCounts",
            "JointRadii",
            "check_muscle_stretch", "check_toe_stiffness",

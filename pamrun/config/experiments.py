@@ -14,6 +14,8 @@ from pamrun.config.task import ENV_SECTIONS
 # larger is better unless prefixed '-'.
 RANK_METRICS = ("walk_pass_rate", "walk_pass_ci_low", "stand_rate", "distance_mean", "distance_min", "return_mean", "duration_mean", "speed_mean",
                 "fall_rate", "max_abs_y_mean", "max_abs_y_max", "pressure_change_mean")
+# The cameras an episode is rendered from (``eval.camera``; PamWalker-v0's ``camera``, pamrun.task.camera).
+CAMERAS = ("follow", "fixed", "three_quarter")
 
 
 @dataclass
@@ -142,7 +144,10 @@ class EvalConfig:
     use_agent_env: bool = True
     top_k: int = 5  # agents drawn in trajectories.png
     save_steps: bool = True  # per-step data in episodes.jsonl
-    render: bool = False  # mp4 of the best agent's first episode
+    render: bool = False  # the best agent's first episode: mp4, a strip of its frames, a GIF
+    # the video's camera (pamrun.task.camera): follow (side-on, following the torso), fixed (side-on,
+    # aimed where the robot starts) or three_quarter (front right, keeping its offset from the centre of mass)
+    camera: str = "follow"
     video_width: int = 640
     video_height: int = 480
     suite: str = ""  # "" = one evaluation; a name in suites: every agent under each of its perturbations
@@ -173,6 +178,7 @@ class EvalConfig:
         for name in ("video_width", "video_height"):
             value = getattr(self, name)
             _require(16 <= value <= 1280 and value % 2 == 0, name, f"must be even and in [16, 1280], got {value}")
+        _require(self.camera in CAMERAS, "camera", f"unknown camera {self.camera!r}; known: {', '.join(CAMERAS)}")
         fields = set(Perturbation.__dataclass_fields__)
         for name, spec in list(self.perturbations.items()):
             if isinstance(spec, Perturbation):

@@ -27,7 +27,8 @@ angles, velocities and torques, pressures, contractions, foot forces and positio
 actions of every episode), ``leaderboard.csv``/``.json`` (ranked by ``eval.rank_by``),
 ``best.pt`` with ``selection.json`` saying why, and the figures drawn from those files by
 :mod:`pamrun.evaluation.figures` (``gait.png`` of the best agent among them); ``eval.render=true`` adds
-``best_episode.mp4`` and ``best_episode_frames.png``.
+``best_episode.mp4`` from ``eval.camera`` (:mod:`pamrun.task.camera`), ``best_episode_frames.png``
+(8 frames 0.1 s apart mid-episode) and ``best_episode.gif`` (3 s of it).
 
 **Suites.** ``eval.suite=robustness`` runs every agent under each perturbation of
 ``eval.suites.robustness`` (each a :class:`pamrun.config.Perturbation` of its own robot and

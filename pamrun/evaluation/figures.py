@@ -86,17 +86,22 @@ def eval_curves(csv_path: Path, png_path: Path, walk_distance_m: float = 7.0, ep
     return save_figure(fig, png_path, dpi=110)
 
 
-def video_frames(mp4_path: Path, png_path: Path, n: int = 5, dt_s: float = 0.025) -> Path:
-    """``n`` evenly spaced frames of a video side by side, each labelled with its time."""
-    import av  # heavy (PyAV, FFmpeg): only eval.render's video needs it; training imports this module
+def video_frames(mp4_path: Path, png_path: Path, n: int = 8, every_s: float = 0.1, width_share: float = 1.0,
+                 from_start: bool = False) -> Path:
+    """``n`` frames of a video ``every_s`` apart about its middle (8 x 0.1 s: about a stride of the
+    walkers; ``from_start``: its first ones; a video too short for them: ``n`` evenly over it) side
+    by side, each labelled with its time; ``width_share`` < 1 keeps that share of each frame's
+    width, about its centre."""
+    # PyAV (FFmpeg) is heavy: only eval.render's video needs it, and training imports this module
+    from pamrun.evaluation.video import picked_frames
 
-    with av.open(str(mp4_path)) as container:
-        frames = [f.to_ndarray(format="rgb24") for f in container.decode(video=0)]
-    picks = np.linspace(0, len(frames) - 1, min(n, len(frames))).round().astype(int)
-    fig, axes = plt.subplots(1, len(picks), figsize=(3.2 * len(picks), 2.6))
-    for ax, k in zip(np.atleast_1d(axes), picks):
-        ax.imshow(frames[k])
-        ax.set_title(f"t = {k * dt_s:.2f} s", fontsize=9)
+    times, frames = picked_frames(mp4_path, n, every_s, from_start)
+    height, width = frames[0].shape[:2]
+    cut = int(round(width * (1 - width_share) / 2))
+    fig, axes = plt.subplots(1, len(frames), figsize=(2.3 * (width - 2 * cut) / height * len(frames), 2.75))
+    for ax, t, frame in zip(np.atleast_1d(axes), times, frames):
+        ax.imshow(frame[:, cut:width - cut])
+        ax.set_title(f"t = {t:.2f} s", fontsize=9)
         ax.axis("off")
     return save_figure(fig, png_path, dpi=100)
 

@@ -76,7 +76,7 @@ def draw_figures(out: Path, ecfg, agents: list[Agent], envs: list[EnvSpec], resu
     # matplotlib and PyAV are imported where figures are drawn: pamrun eval imports this module
     # before it checks its config, and a config error need not wait for them (about a second).
     from pamrun.evaluation import figures
-    from pamrun.evaluation.video import record_video
+    from pamrun.evaluation.video import record_video, write_gif
 
     written = ["episodes.jsonl", "leaderboard.csv", "leaderboard.json", "best.pt", "selection.json"]
     if ecfg.save_steps:  # the per-step figures need the per-step data
@@ -95,10 +95,15 @@ def draw_figures(out: Path, ecfg, agents: list[Agent], envs: list[EnvSpec], resu
         written.append(name)
     if ecfg.render:
         video = record_video(best, envs[agents.index(best)], ecfg.seed, ecfg.video_width, ecfg.video_height,
-                             out / "best_episode.mp4")
+                             out / "best_episode.mp4", ecfg.camera)
         same = abs(video["distance_m"] - results[agents.index(best)][0]["distance_m"]) < 1e-9
         console.print(f"Video: {video['frames']} frames, {video['duration_s']:.2f} s"
                       + ("" if same else " [red](the replay differs from the evaluated episode)[/red]"))
-        figures.video_frames(out / "best_episode.mp4", out / "best_episode_frames.png")
-        written += ["best_episode.mp4", "best_episode_frames.png"]
+        # the following camera keeps the robot mid-picture: the strip shows the middle of each frame;
+        # the fixed one sees it only near its start: strip and GIF show the episode's first frames
+        from_start = ecfg.camera == "fixed"
+        figures.video_frames(out / "best_episode.mp4", out / "best_episode_frames.png",
+                             width_share=0.6 if ecfg.camera == "follow" else 1.0, from_start=from_start)
+        write_gif(out / "best_episode.mp4", out / "best_episode.gif", from_start=from_start)
+        written += ["best_episode.mp4", "best_episode_frames.png", "best_episode.gif"]
     return written

@@ -49,6 +49,12 @@ later (:mod:`pamrun.task.clock`).
 ``env.observation_noise_std`` (Gaussian noise on the 33 sensed values), ``env.push_impulse_ns``
 at ``env.push_time_s`` over ``env.push_duration_s`` (a constant force on the torso).
 
+## Rendering
+``render_mode="rgb_array"``: :meth:`render` returns a ``height`` x ``width`` RGB frame from the
+camera named by the keyword argument ``camera`` (:mod:`pamrun.task.camera`): ``follow``
+(default; side-on, following the torso), ``fixed`` (side-on, aimed where the robot starts) or
+``three_quarter`` (the model's camera, front right).
+
 ## Episode end
 Truncation after ``env.episode_s`` (10 s). Termination by a fall (:func:`pamrun.task.criteria.fell`)
 or when the physics state is not finite (``info["physics_error"]``).
@@ -85,6 +91,7 @@ from pamrun.physics import body as body_mod
 from pamrun.physics.actuation import MuscleDrive, joint_limits_rad, muscle_counts
 from pamrun.physics.muscle import AirMeter
 from pamrun.task import clock
+from pamrun.task.camera import Camera
 from pamrun.task.clock import gait_at_speed
 from pamrun.task.criteria import fell as fell_rule
 from pamrun.task.measures import CONTACT_WEIGHT_SHARE, KNEES, STOP_MARGIN_DEG, stop_bounds
@@ -140,6 +147,7 @@ class PamWalkerEnv(gym.Env):
         height: int = 360,
         features: Iterable[str] = (),
         lean_info: bool = False,
+        camera: str = "follow",
     ):
         self.body_cfg, self.muscle_cfg = as_config(body, BodyConfig), as_config(muscle, MuscleConfig)
         self.reward_cfg, self.env_cfg = as_config(reward, RewardConfig), as_config(env, EnvConfig)
@@ -152,6 +160,7 @@ class PamWalkerEnv(gym.Env):
         self._renderer: mujoco.Renderer | None = None
         cfg = self.env_cfg
         self._build_physics(cfg)
+        self.camera = Camera(camera, self.model, self.body_cfg.height_m)  # what render() draws from
         self.drive = MuscleDrive(self.muscle_cfg, self.body_cfg)
         self.n_actions = self.drive.n_actions
         self.action_space = gym.spaces.Box(-1.0, 1.0, (self.n_actions,), np.float32)
@@ -302,7 +311,7 @@ class PamWalkerEnv(gym.Env):
             return None
         if self._renderer is None:
             self._renderer = mujoco.Renderer(self.model, self.height, self.width)
-        self._renderer.update_scene(self.data, camera=body_mod.CAMERA)
+        self.camera.update_scene(self._renderer, self.data)
         return self._renderer.render()
 
     def close(self):

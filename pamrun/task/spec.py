@@ -68,7 +68,7 @@ class EnvSpec:
         return {name: getattr(self, name) for name in ENV_SECTIONS}
 
     def make(self, **render_kwargs) -> PamWalkerEnv:
-        """PamWalker-v0 of this robot and task (``render_kwargs``: render_mode, width, height)."""
+        """PamWalker-v0 of this robot and task (``render_kwargs``: render_mode, width, height, camera)."""
         return PamWalkerEnv(**self.sections(), **render_kwargs)
 
     def with_values(self, **values: dict) -> EnvSpec:
