@@ -5,7 +5,8 @@
 Runs, with fixed seeds, ``pamrun train experiment=thesis train=smoke``, a 5,000-frame
 ``pamrun train experiment=walker`` (evaluating every 2,500 frames) and ``pamrun eval`` of the
 shipped walker, then prints the md5 of ``episodes.csv`` and ``evals.csv`` (their rows without
-the wall-clock columns) and of the evaluation's ``episodes.jsonl``, each with its row count.
+the wall-clock columns; evals.csv's gait means, added after the lines below were taken, in a
+line of their own) and of the evaluation's ``episodes.jsonl``, each with its row count.
 Equal lines before and after a change mean the same training and the same evaluation, bit for
 bit, on this machine (floating point may differ on another CPU). On 2026-12-04 (2-core x86_64),
 before and after the package split of issue 36:
@@ -28,6 +29,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 WALL_CLOCK = {"wall_time_s", "eval_s"}
+# evals.csv's columns when the fingerprints above were taken (its later columns, the gait means, are hashed apart)
+EVAL_COLUMNS = ("frames", "episodes", "walk_pass_rate", "stand_rate", "fall_rate", "distance_mean", "distance_min",
+                "duration_mean", "max_abs_y_max", "return_mean", "pressure_change_mean", "select_pass_rate", "best")
 RUNS = {
     "thesis": ["train", "experiment=thesis", "train=smoke", "seed=0"],
     "walker": ["train", "experiment=walker", "train.max_frames=5000", "train.eval_every_frames=2500", "seed=0"],
@@ -35,9 +39,11 @@ RUNS = {
 }
 
 
-def csv_hash(path: Path) -> tuple[str, int]:
+def csv_hash(path: Path, columns=None, leave_out=()) -> tuple[str, int]:
+    """md5 of the rows' values but the wall-clock ones: of ``columns`` only, or all but ``leave_out``."""
     rows = list(csv.DictReader(path.open()))
-    text = "\n".join(",".join(f"{k}={v}" for k, v in row.items() if k not in WALL_CLOCK) for row in rows)
+    keep = lambda k: k not in WALL_CLOCK and (k in columns if columns else k not in leave_out)  # noqa: E731
+    text = "\n".join(",".join(f"{k}={v}" for k, v in row.items() if keep(k)) for row in rows)
     return hashlib.md5(text.encode()).hexdigest(), len(rows)
 
 
@@ -55,8 +61,9 @@ def main() -> None:
         subprocess.run(["pamrun", *command, f"hydra.run.dir={out / name}"], check=True, cwd=ROOT,
                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     for name in ("thesis", "walker"):
-        for file in ("episodes.csv", "evals.csv"):
-            print(name, file, *csv_hash(out / name / file))
+        print(name, "episodes.csv", *csv_hash(out / name / "episodes.csv"))
+        print(name, "evals.csv", *csv_hash(out / name / "evals.csv", EVAL_COLUMNS))
+        print(name, "evals.csv gait", *csv_hash(out / name / "evals.csv", leave_out=EVAL_COLUMNS))
     print("eval episodes.jsonl", *jsonl_hash(out / "eval" / "episodes.jsonl"))
 
 

@@ -1,5 +1,6 @@
-"""The evaluations during training: ``pamrun eval``'s walk test run on the current actor, and
-which of two evaluations ranks first (``best_eval.pt``)."""
+"""The evaluations during training: ``pamrun eval``'s walk test run on the current actor, which
+of two evaluations ranks first (``best_eval.pt``), and a short video of an evaluation's first
+episode (for TensorBoard: :mod:`pamrun.evaluation.board`)."""
 
 from __future__ import annotations
 
@@ -10,9 +11,23 @@ import numpy as np
 import torch
 
 from pamrun.evaluation.episodes import aggregate, run_episode, torch_threads
+from pamrun.evaluation.metrics import GaitSpec
 from pamrun.evaluation.ranking import rank
 from pamrun.task.criteria import walk_passed
 from pamrun.task.spec import EnvSpec, eval_env_options
+
+VIDEO_S = 4.0  # seconds of the episode a video shows (from its start)
+VIDEO_STRIDE = 2  # a video frame every this many control steps
+VIDEO_SIZE = (320, 240)  # width, height of a video frame [px]
+
+
+def as_policy(actor):
+    """``actor`` (a torch module) as a function observation -> action."""
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        return actor(torch.as_tensor(obs, dtype=torch.float32).unsqueeze(0))[0].numpy()
+
+    return policy
 
 
 class TrainingEvaluator:
@@ -23,7 +38,8 @@ class TrainingEvaluator:
     block, disjoint from ``pamrun eval``'s held-out ``eval.seed``) with the evaluation's start
     noise and episode length (:func:`pamrun.task.spec.eval_env_options`; the commanded speed
     stays the run's own), the same starts every time, in this process with one torch thread,
-    and returns the aggregate (:func:`pamrun.evaluation.episodes.aggregate`) with its cost ``eval_s``.
+    and returns the aggregate (:func:`pamrun.evaluation.episodes.aggregate`) with its cost ``eval_s``
+    and its first episode with its per-step arrays (``first_episode``; the gait figure's).
 
     **Selection under perturbation** (``train.select_perturbations``): once a nominal episode
     passes, the call also runs ``train.select_episodes`` episodes (seeds ``eval.selection_seed
@@ -33,34 +49,71 @@ class TrainingEvaluator:
     among agents that all walk the nominal block, the one that holds under perturbation is kept.
     The nominal aggregate is unchanged (the curriculum reads it).
     Anchors: Stable-Baselines3's ``EvalCallback``, TorchRL's ``Evaluator``.
+
+    **Video** (``train.eval_video_every`` > 0): :meth:`video` replays the first episode in an env
+    of its own that renders offscreen; it is made, and renders once, here, so that a machine
+    that cannot render stops the run at its start.
     """
 
     def __init__(self, cfg):
         self.ecfg, self.episodes = cfg.eval, cfg.train.eval_episodes
         t = cfg.train
         self.select_counts = [t.select_episodes_of.get(name, t.select_episodes) for name in t.select_perturbations]
-        spec = EnvSpec.from_config(cfg).with_values(env=eval_env_options(cfg.eval, hold_speed=False))
-        self.env = spec.make()
-        self.perturbed = [spec.perturbed(cfg.eval.perturbations[name], f"eval.perturbations.{name}").make()
+        self.spec = EnvSpec.from_config(cfg).with_values(env=eval_env_options(cfg.eval, hold_speed=False))
+        self.env = self.spec.make()
+        self.gait_spec = GaitSpec.from_configs(self.env.body_cfg, self.env.muscle_cfg, self.env.mass_kg,
+                                               self.env.env_cfg.control_dt_s)
+        self.perturbed = [self.spec.perturbed(cfg.eval.perturbations[name], f"eval.perturbations.{name}").make()
                           for name in t.select_perturbations]
+        self.camera = self.open_camera() if t.eval_video_every else None
 
     def __call__(self, actor) -> dict[str, Any]:
         start = time.perf_counter()
+        policy = as_policy(actor)
 
-        def policy(obs: np.ndarray) -> np.ndarray:
-            return actor(torch.as_tensor(obs, dtype=torch.float32).unsqueeze(0))[0].numpy()
-
-        def block(env, n: int) -> list[dict]:
-            return [run_episode(policy, env, self.ecfg.selection_seed + k, keep_steps=False) for k in range(n)]
+        def block(env, n: int, keep_first: bool = False) -> list[dict]:
+            return [run_episode(policy, env, self.ecfg.selection_seed + k, keep_steps=keep_first and k == 0)
+                    for k in range(n)]
 
         with torch.no_grad(), torch_threads(1):
-            episodes = block(self.env, self.episodes)
+            episodes = block(self.env, self.episodes, keep_first=True)
             result = aggregate(episodes, self.ecfg)
             if result["walk_passes"]:
                 episodes += [e for env, n in zip(self.perturbed, self.select_counts) for e in block(env, n)]
         seeds = [self.ecfg.selection_seed, self.ecfg.selection_seed + self.episodes - 1]
         select = float(np.mean([walk_passed(e, self.ecfg) for e in episodes]))
-        return {**result, "select_pass_rate": select, "seeds": seeds, "eval_s": time.perf_counter() - start}
+        return {**result, "select_pass_rate": select, "seeds": seeds, "first_episode": episodes[0],
+                "eval_s": time.perf_counter() - start}
+
+    def open_camera(self):
+        """The env :meth:`video` renders in, checked by rendering its first frame."""
+        env = self.spec.make(render_mode="rgb_array", width=VIDEO_SIZE[0], height=VIDEO_SIZE[1])
+        try:
+            env.reset(seed=self.ecfg.selection_seed)
+            env.render()
+        except Exception as err:  # no OpenGL to render with (MUJOCO_GL names the backend, egl by default)
+            env.close()
+            raise SystemExit(f"pamrun: train.eval_video_every: videos need offscreen rendering, which failed here "
+                             f"({type(err).__name__}: {err}): set MUJOCO_GL to a backend this machine has (egl, "
+                             f"osmesa), or train.eval_video_every=0") from None
+        return env
+
+    def video(self, actor) -> tuple[list[np.ndarray], float]:
+        """The first ``VIDEO_S`` seconds of the first episode (its seed, hence the same episode),
+        rendered every ``VIDEO_STRIDE``-th control step and at its end; the frames and their
+        rate (frames/s)."""
+        env, policy = self.camera, as_policy(actor)
+        dt = env.env_cfg.control_dt_s
+        with torch.no_grad(), torch_threads(1):
+            obs, _ = env.reset(seed=self.ecfg.selection_seed)
+            frames = [env.render()]
+            for i in range(1, round(VIDEO_S / dt) + 1):
+                obs, _, terminated, truncated, _ = env.step(policy(obs))
+                if i % VIDEO_STRIDE == 0 or terminated or truncated:
+                    frames.append(env.render())
+                if terminated or truncated:
+                    break
+        return frames, 1.0 / (VIDEO_STRIDE * dt)
 
     def better(self, new: dict, best: dict | None) -> bool:
         """Whether ``new`` ranks before ``best`` by ``eval.rank_by``, preceded by
@@ -74,5 +127,5 @@ class TrainingEvaluator:
         return ranked[0]["agent"] == "1-new"
 
     def close(self) -> None:
-        for env in (self.env, *self.perturbed):
+        for env in (self.env, *self.perturbed, *([self.camera] if self.camera else [])):
             env.close()

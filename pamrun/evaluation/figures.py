@@ -8,6 +8,7 @@ The bench's and the sweep's figures follow the same rule (:mod:`pamrun.bench.fig
 from __future__ import annotations
 
 import csv
+import io
 import json
 from pathlib import Path
 
@@ -27,6 +28,15 @@ def save_figure(fig, png_path: Path, dpi: int) -> Path:
     fig.savefig(png_path, dpi=dpi)
     plt.close(fig)
     return Path(png_path)
+
+
+def png_bytes(fig, dpi: int) -> bytes:
+    """Lay ``fig`` out, encode it as PNG at ``dpi`` and close it (a figure for TensorBoard)."""
+    out = io.BytesIO()
+    fig.tight_layout()
+    fig.savefig(out, format="png", dpi=dpi)
+    plt.close(fig)
+    return out.getvalue()
 
 
 def training_curves(csv_path: Path, png_path: Path) -> Path:
@@ -222,7 +232,12 @@ def _footfalls(ax, episodes: list[dict], contact_threshold_n: float, footfall_s:
 
 def gait(episodes: list[dict], joint_limits_rad, contact_threshold_n: float, png_path: Path,
          footfall_s: float = 5.0) -> Path:
-    """Left and right joint angles over the gait cycle, and a footfall diagram (``gait.png``).
+    """``gait.png``: :func:`gait_figure` of ``episodes``."""
+    return save_figure(gait_figure(episodes, joint_limits_rad, contact_threshold_n, footfall_s), png_path, dpi=110)
+
+
+def gait_figure(episodes: list[dict], joint_limits_rad, contact_threshold_n: float, footfall_s: float = 5.0):
+    """Left and right joint angles over the gait cycle, and a footfall diagram (a matplotlib figure).
 
     ``episodes``: records as read from ``episodes.jsonl`` (each with its ``steps``);
     ``joint_limits_rad``: the (10, 2) limits in JOINTS order; ``contact_threshold_n``: a foot
@@ -264,7 +279,7 @@ def gait(episodes: list[dict], joint_limits_rad, contact_threshold_n: float, png
     _footfalls(fig.add_subplot(grid_spec[1, :]), episodes, contact_threshold_n, footfall_s, colors)
     fig.suptitle(f"Gait: joint angles over each leg's stride (touchdown to touchdown of its foot), mean ± std "
                  f"of {len(episodes)} episodes; dashed: the stops", fontsize=11)
-    return save_figure(fig, png_path, dpi=110)
+    return fig
 
 
 def robustness(json_path: Path, png_path: Path) -> Path:

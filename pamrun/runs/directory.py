@@ -47,7 +47,11 @@ EPISODE_FIELDS = ("episode", "frames", "reward", "avg_reward", "q0", "length", "
                   "physics_error")
 EVAL_FIELDS = ("frames", "episodes", "wall_time_s", "eval_s", "walk_pass_rate", "stand_rate", "fall_rate",
                "distance_mean", "distance_min", "duration_mean", "max_abs_y_max", "return_mean",
-               "pressure_change_mean", "select_pass_rate", "best")
+               "pressure_change_mean", "select_pass_rate", "best",
+               # gait means over the nominal episodes (pamrun.evaluation.metrics), NaN where undefined
+               "speed_mean", "step_frequency_hz_mean", "stride_length_m_mean", "duty_factor_mean",
+               "step_time_symmetry_mean", "step_length_symmetry_mean", "stop_share_gait_max_mean",
+               "cost_of_transport_mean", "air_nl_per_m_mean")
 # What a training writes besides .hydra/ and its config (an early kill's leftovers are moved aside).
 LEFTOVERS = ("episodes.csv", "evals.csv", "run.json", "tensorboard", "training.png", "evals.png")
 # What a resume takes from its command line: the budget (wall time counts the run's whole time).

@@ -37,7 +37,7 @@ from rich.table import Table
 from scipy import stats
 
 from pamrun.config import JOB_METRICS, Config, to_object
-from pamrun.runs.directory import RunFiles, read_episodes, saved_config
+from pamrun.runs.directory import RunFiles, read_episodes, read_evals, saved_config
 from pamrun.runs.files import console as make_console
 from pamrun.runs.files import read_json, write_json
 from pamrun.runs.machine import (
@@ -47,6 +47,10 @@ from pamrun.sweep import figures
 
 JOB_FILE = "job.json"
 FINISHED_TRAINING = ("max_frames", "max_episodes", "max_minutes", "target_avg_reward")
+# Of the last evaluation during training and the best (best_eval.pt's): job.json's eval_last_<key>, eval_best_<key>
+EVAL_METRICS = ("walk_pass_rate", "stand_rate", "distance_mean", "speed_mean", "step_frequency_hz_mean",
+                "duty_factor_mean", "stop_share_gait_max_mean", "cost_of_transport_mean")
+HPARAM_METRICS = (*JOB_METRICS, *(f"eval_{which}_{key}" for which in ("last", "best") for key in EVAL_METRICS))
 METRIC_LABELS = {"final_avg_reward": "final avg reward", "best_distance_m": "best distance (m)",
                  "walk_pass_rate": "walk pass rate", "frames_to_first_save": "frames to 1st save"}
 
@@ -147,7 +151,21 @@ def job_metrics(job_dir: Path) -> dict[str, float | None]:
         "frames": run.get("frames"),
         "episodes": run.get("episodes"),
         "train_wall_time_s": run.get("wall_time_s"),
+        **training_evals(job_dir),
     }
+
+
+def training_evals(job_dir: Path) -> dict[str, float | None]:
+    """:data:`EVAL_METRICS` of the last evaluation during training and of the best (evals.csv);
+    None where there is none or the value is undefined."""
+    rows = read_evals(job_dir)
+    best = [r for r in rows if r.get("best") == "1"]
+    out = {}
+    for which, row in (("last", rows[-1] if rows else {}), ("best", best[-1] if best else {})):
+        for key in EVAL_METRICS:
+            value = float(row.get(key) or "nan")  # (a column an older evals.csv lacks reads "")
+            out[f"eval_{which}_{key}"] = value if math.isfinite(value) else None
+    return out
 
 
 def hparams_of(overrides: list[str]) -> dict[str, Any]:
@@ -163,10 +181,12 @@ def hparams_of(overrides: list[str]) -> dict[str, Any]:
 
 
 def write_hparams(job_dir: Path, hparams: dict, metrics: dict) -> None:
-    """The job's row of TensorBoard's HParams view (``tensorboard --logdir <sweep dir>``)."""
+    """The job's row of TensorBoard's HParams view (``tensorboard --logdir <sweep dir>``): the
+    metrics of :data:`HPARAM_METRICS`, NaN where undefined (every job names them all: TensorBoard
+    takes the columns from one job's record)."""
     from torch.utils.tensorboard import SummaryWriter  # heavy (torch, TensorBoard): only a job writes it
 
-    values = {f"sweep/{k}": float(v) for k, v in metrics.items() if k in JOB_METRICS and v is not None}
+    values = {f"sweep/{k}": math.nan if metrics.get(k) is None else float(metrics[k]) for k in HPARAM_METRICS}
     with SummaryWriter(str(job_dir / "tensorboard")) as writer:
         writer.add_hparams(hparams or {"setting": "default"}, values, run_name=".")
 

@@ -7,7 +7,8 @@ updates of the learner (:mod:`pamrun.learning.networks`). A :class:`Run` keeps t
 directory (:mod:`pamrun.runs.directory`): every finished episode is a row of ``episodes.csv`` and a
 point in TensorBoard (reward, average reward, Q0: the three curves of thesis Fig. 10.24);
 agents whose episode reward reaches ``train.save_threshold`` are saved (MATLAB's
-SaveAgentCriteria); evaluations every ``train.eval_every_frames`` keep ``best_eval.pt``; and
+SaveAgentCriteria); evaluations every ``train.eval_every_frames`` keep ``best_eval.pt`` and show
+their gait in TensorBoard (scalars, figure, a video every ``train.eval_video_every``); and
 ``checkpoints/last.pt`` holds what a later resume needs, written atomically. A reward
 curriculum (:mod:`pamrun.learning.curriculum`) is a transform of the replay buffer.
 """
@@ -32,7 +33,7 @@ from torchrl.envs.gym_like import default_info_dict_reader
 
 import pamrun  # noqa: F401  (registers PamWalker-v0 with Gymnasium, in worker processes too)
 from pamrun.config import Config, to_object
-from pamrun.evaluation import figures
+from pamrun.evaluation import board, figures
 from pamrun.evaluation.evaluator import TrainingEvaluator
 from pamrun.learning import checkpoints, networks
 from pamrun.learning.curriculum import FeatureReader, WalkCurriculum, reweighted_terms
@@ -273,7 +274,9 @@ class Run:
 
 
 class Evaluations:
-    """Evaluations during training: evals.csv, TensorBoard ``eval/*`` and checkpoints/best_eval.pt.
+    """Evaluations during training: evals.csv, TensorBoard ``eval/*`` and checkpoints/best_eval.pt,
+    and TensorBoard's gait scalars and figure (:mod:`pamrun.evaluation.board`), with a video every
+    ``train.eval_video_every``-th evaluation (counted in frames: the k-th at k x ``train.eval_every_frames``).
 
     ``best_eval.pt`` is only ever replaced by an agent that ranks before it (``eval.rank_by``);
     its evaluation is stored in it, so a resumed run keeps comparing against it."""
@@ -282,6 +285,7 @@ class Evaluations:
 
         self.best_path = RunFiles(out).best_eval
         self.evaluator = TrainingEvaluator(cfg)
+        self.every, self.video_every = cfg.train.eval_every_frames, cfg.train.eval_video_every
         self.writer = writer
         self.best = checkpoints.load_agent(self.best_path).meta.get("eval") if self.best_path.exists() else None
         self.log = CsvLog(RunFiles(out).evals, EVAL_FIELDS)
@@ -301,7 +305,20 @@ class Evaluations:
         for key in ("walk_pass_rate", "stand_rate", "fall_rate", "distance_mean", "duration_mean",
                     "max_abs_y_max", "return_mean", "select_pass_rate", "eval_s"):
             self.writer.add_scalar(f"eval/{key}", result[key], counters["frames"])
+        self.show(actor, result, counters["frames"])
         return result
+
+    def show(self, actor, result: dict, frames: int) -> None:
+        """TensorBoard's gait scalars and figure of this evaluation, and its video when one is due,
+        each with its cost (``eval/figure_s``, ``eval/video_s``)."""
+        start = time.perf_counter()
+        board.log_gait(self.writer, result, frames)
+        board.log_gait_figure(self.writer, result["first_episode"], self.evaluator.gait_spec, frames)
+        self.writer.add_scalar("eval/figure_s", time.perf_counter() - start, frames)
+        if self.video_every and (frames // self.every) % self.video_every == 0:
+            start = time.perf_counter()
+            board.log_video(self.writer, *self.evaluator.video(actor), frames)
+            self.writer.add_scalar("eval/video_s", time.perf_counter() - start, frames)
 
     def close(self) -> None:
         self.log.close()
