@@ -51,8 +51,8 @@ class TrainingEvaluator:
     Anchors: Stable-Baselines3's ``EvalCallback``, TorchRL's ``Evaluator``.
 
     **Video** (``train.eval_video_every`` > 0): :meth:`video` replays the first episode in an env
-    of its own that renders offscreen; it is made, and renders once, here, so that a machine
-    that cannot render stops the run at its start.
+    of its own that renders offscreen, made at the first video. On a machine that cannot render,
+    :meth:`video` returns None and ``no_video`` says why (the run goes on without videos).
     """
 
     def __init__(self, cfg):
@@ -65,7 +65,7 @@ class TrainingEvaluator:
                                                self.env.env_cfg.control_dt_s)
         self.perturbed = [self.spec.perturbed(cfg.eval.perturbations[name], f"eval.perturbations.{name}").make()
                           for name in t.select_perturbations]
-        self.camera = self.open_camera() if t.eval_video_every else None
+        self.camera, self.no_video = None, ""
 
     def __call__(self, actor) -> dict[str, Any]:
         start = time.perf_counter()
@@ -86,22 +86,27 @@ class TrainingEvaluator:
                 "eval_s": time.perf_counter() - start}
 
     def open_camera(self):
-        """The env :meth:`video` renders in, checked by rendering its first frame."""
+        """The env :meth:`video` renders in, checked by rendering its first frame; None, with
+        ``no_video`` saying why, where this machine cannot render."""
         env = self.spec.make(render_mode="rgb_array", width=VIDEO_SIZE[0], height=VIDEO_SIZE[1])
         try:
             env.reset(seed=self.ecfg.selection_seed)
             env.render()
         except Exception as err:  # no OpenGL to render with (MUJOCO_GL names the backend, egl by default)
             env.close()
-            raise SystemExit(f"pamrun: train.eval_video_every: videos need offscreen rendering, which failed here "
-                             f"({type(err).__name__}: {err}): set MUJOCO_GL to a backend this machine has (egl, "
-                             f"osmesa), or train.eval_video_every=0") from None
+            self.no_video = (f"no videos in TensorBoard: offscreen rendering failed ({type(err).__name__}: {err}); "
+                             "set MUJOCO_GL to a backend this machine has (egl, osmesa), or train.eval_video_every=0")
+            return None
         return env
 
-    def video(self, actor) -> tuple[list[np.ndarray], float]:
+    def video(self, actor) -> tuple[list[np.ndarray], float] | None:
         """The first ``VIDEO_S`` seconds of the first episode (its seed, hence the same episode),
         rendered every ``VIDEO_STRIDE``-th control step and at its end; the frames and their
-        rate (frames/s)."""
+        rate (frames/s). None where this machine cannot render (``no_video``)."""
+        if self.camera is None and not self.no_video:
+            self.camera = self.open_camera()
+        if self.camera is None:
+            return None
         env, policy = self.camera, as_policy(actor)
         dt = env.env_cfg.control_dt_s
         with torch.no_grad(), torch_threads(1):

@@ -175,7 +175,7 @@ class Run:
         self.log = EpisodeLog(out, cfg.train.avg_window, SummaryWriter(str(self.files.tensorboard)),
                               counters["episodes"])
         self.tracker = EpisodeTracker()
-        self.evals = Evaluations(cfg, out, self.log.writer) if cfg.train.eval_every_frames else None
+        self.evals = Evaluations(cfg, out, self.log.writer, console) if cfg.train.eval_every_frames else None
         self.info = directory.start_run_json(out, cfg, resuming, self.frames, overrides)
         if curriculum.walking:
             self.info.setdefault("walk_kvx_from_frames", curriculum.since)
@@ -281,12 +281,12 @@ class Evaluations:
     ``best_eval.pt`` is only ever replaced by an agent that ranks before it (``eval.rank_by``);
     its evaluation is stored in it, so a resumed run keeps comparing against it."""
 
-    def __init__(self, cfg: Config, out: Path, writer):
+    def __init__(self, cfg: Config, out: Path, writer, console):
 
         self.best_path = RunFiles(out).best_eval
         self.evaluator = TrainingEvaluator(cfg)
         self.every, self.video_every = cfg.train.eval_every_frames, cfg.train.eval_video_every
-        self.writer = writer
+        self.writer, self.console = writer, console
         self.best = checkpoints.load_agent(self.best_path).meta.get("eval") if self.best_path.exists() else None
         self.log = CsvLog(RunFiles(out).evals, EVAL_FIELDS)
 
@@ -316,9 +316,14 @@ class Evaluations:
         board.log_gait_figure(self.writer, result["first_episode"], self.evaluator.gait_spec, frames)
         self.writer.add_scalar("eval/figure_s", time.perf_counter() - start, frames)
         if self.video_every and (frames // self.every) % self.video_every == 0:
-            start = time.perf_counter()
-            board.log_video(self.writer, *self.evaluator.video(actor), frames)
-            self.writer.add_scalar("eval/video_s", time.perf_counter() - start, frames)
+            start, had_video = time.perf_counter(), not self.evaluator.no_video
+            video = self.evaluator.video(actor)
+            if video:
+                board.log_video(self.writer, *video, frames)
+                self.writer.add_scalar("eval/video_s", time.perf_counter() - start, frames)
+            elif had_video:  # said once, on the console and in TensorBoard's text tab
+                self.console.print(f"[yellow]pamrun: {self.evaluator.no_video}[/]", soft_wrap=True)
+                self.writer.add_text("video/episode", self.evaluator.no_video, frames)
 
     def close(self) -> None:
         self.log.close()
