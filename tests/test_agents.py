@@ -261,3 +261,52 @@ def test_concat_critic_takes_observation_and_action_at_its_input():
     assert not torch.equal(critic(obs, act), critic(obs, -act))  # the action matters
     with pytest.raises(ConfigError, match="critic"):
         AlgoConfig(critic="wide")
+
+
+@pytest.mark.parametrize("name", ["td3", "sac"])
+def test_mirror_loss_makes_the_actor_its_own_mirror_image(name):
+    """algo.mirror_loss (Yu, Turk & Liu 2018): the actor's updates shrink ||pi(s) - M_a pi(M_s s)||^2,
+    which TD3's stays near without it; the maps are the env's own (pamrun/task/symmetry.py)."""
+    from pamrun.task.symmetry import action_map, observation_map
+
+    maps = (*observation_map(10), *action_map(10))
+    o_index, o_sign = maps[0], torch.as_tensor(maps[1], dtype=torch.float32)
+    obs = _batch()["observation"]
+    assert torch.equal(obs[:, o_index][:, o_index] * o_sign[o_index] * o_sign, obs)  # M_s M_s s = s
+
+    def asymmetry(weight: float) -> tuple[float, float]:
+        torch.manual_seed(0)
+        learner = networks.make_learner(AlgoConfig(name=name, actor_lr=1e-3, mirror_loss=weight), 43, 10, SPEC,
+                                        maps)
+        with torch.no_grad():
+            learner.actor.module.net[-2].weight.mul_(300)  # a random actor, far from symmetric
+        before = learner.mirror_loss(obs).item()
+        for _ in range(40):
+            learner.update(_batch())
+        return before, learner.mirror_loss(obs).item()
+
+    before, after = asymmetry(100.0)
+    assert before > 0.05 and after < 0.3 * before
+    if name == "td3":  # (SAC's entropy term alone shrinks these saturated outputs too)
+        before_off, after_off = asymmetry(0.0)
+        assert before_off == before and after_off > 0.6 * before
+    with pytest.raises(ConfigError, match="mirror_loss"):
+        AlgoConfig(mirror_loss=-1)
+
+
+@pytest.mark.parametrize("overrides", [["experiment=walker"], ["experiment=walker", "muscle.command=independent",
+                                                               "env.speed_command=true"]])
+def test_the_recipe_gives_the_learner_the_envs_mirror_maps(overrides):
+    """pamrun train with algo.mirror_loss builds its learner with the mirror maps of its own env's
+    observation (clock, speed command) and action (joints or muscles); without it, none."""
+    from pamrun.config import to_object
+    from pamrun.training.recipe import make_learner
+    from tests.conftest import compose_config
+
+    cfg = to_object(compose_config(*overrides, "algo.mirror_loss=4"))
+    learner = make_learner(cfg)
+    obs = torch.randn(8, learner.actor.module.net[0].in_features)
+    o_index, o_sign, a_index, _ = learner.mirror
+    assert len(o_index) == obs.shape[1] and len(a_index) == learner.actor.module.net[-2].out_features
+    assert learner.mirror_loss(obs).item() > 0
+    assert make_learner(to_object(compose_config(*overrides))).mirror is None

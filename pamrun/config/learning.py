@@ -42,6 +42,10 @@ class AlgoConfig:
     init_alpha: float = 1.0  # SAC's initial entropy temperature alpha (learned; lr = actor_lr)
     target_entropy: float = -1.0  # SAC's target entropy per action dimension
     grad_clip: float = 1.0  # gradient threshold of the MathWorks example
+    # Weight w of the mirror loss added to the actor's loss, w mean ||pi(s) - M_a pi(M_s s)||^2 with M_s, M_a the
+    # observation's and action's mirror images (pamrun/task/symmetry.py): the policy is asked to be its own
+    # mirror image, beyond mirrored data (train.mirror). Yu, Turk & Liu, SIGGRAPH 2018: weight 4. 0 = off.
+    mirror_loss: float = 0.0
 
     def __post_init__(self) -> None:
         _require(self.name in ("ddpg", "td3", "sac"), "name", f"unknown algorithm {self.name!r}; known: ddpg, td3, sac")
@@ -50,7 +54,7 @@ class AlgoConfig:
         _require(0 < self.target_smoothing <= 1, "target_smoothing", "must lie in (0, 1]")
         _positive(self, "actor_lr", "critic_lr", "output_init_scale", "ou_dt_s", "grad_clip", "init_alpha")
         _non_negative(self, "noise_variance", "noise_decay", "noise_variance_min", "ou_theta", "policy_noise",
-                      "noise_clip")
+                      "noise_clip", "mirror_loss")
         _require(len(self.hidden_sizes) == 2 and min(self.hidden_sizes) > 0, "hidden_sizes",
                  f"needs two positive layer sizes, got {list(self.hidden_sizes)}")
         _require(self.critic in ("thesis", "concat"), "critic", f"must be thesis or concat, got {self.critic!r}")

@@ -198,7 +198,8 @@ class Learner:
     * critic target: y = r + gamma (1 - terminated) min_k Q'_k(s', a'), with a' = pi'(s')
       (:meth:`next_action`; TD3 adds its target policy smoothing);
     * critic loss: sum over the critics of mean(loss_function(Q_k(s, a), y));
-    * actor loss: -mean(Q_1(s, pi(s)));
+    * actor loss: -mean(Q_1(s, pi(s))), plus ``algo.mirror_loss`` x :meth:`mirror_loss` when the
+      learner has the mirror maps (``mirror``: observation index and sign, action index and sign);
     * targets: theta' <- theta' + tau (theta - theta') (TorchRL's ``SoftUpdate``).
 
     An algorithm is a subclass that overrides :meth:`next_action`, :meth:`actor_loss` or
@@ -207,8 +208,9 @@ class Learner:
 
     follows_actor_target = True  # the actor has a target network that follows it
 
-    def __init__(self, cfg: AlgoConfig, obs_size: int, action_size: int, action_spec):
+    def __init__(self, cfg: AlgoConfig, obs_size: int, action_size: int, action_spec, mirror=None):
         self.cfg = cfg
+        self.mirror = None if mirror is None else tuple(torch.as_tensor(m) for m in mirror)
         self.actor = make_actor(cfg, obs_size, action_size)  # a TensorDictModule, for the collector
         self.critics = nn.ModuleList(make_critic(cfg, obs_size, action_size) for _ in range(n_critics(cfg)))
         self.actor_target = copy.deepcopy(self.actor.module).requires_grad_(False)  # unused by SAC
@@ -247,6 +249,14 @@ class Learner:
     def actor_loss(self, obs) -> torch.Tensor:
         return -self.critics[0](obs, self.actor.module(obs)).mean()
 
+    def mirror_loss(self, obs) -> torch.Tensor:
+        """mean ||pi(s) - M_a pi(M_s s)||^2 over the batch and the actions: 0 for a policy that is
+        its own mirror image (Yu, Turk & Liu 2018)."""
+        o_index, o_sign, a_index, a_sign = self.mirror
+        action = self.actor.module(obs)
+        mirrored = self.actor.module(obs[..., o_index] * o_sign.to(obs.dtype))
+        return (action - mirrored[..., a_index] * a_sign.to(obs.dtype)).pow(2).mean()
+
     def after_actor_step(self) -> None:
         """What follows each actor step, before the targets' soft update (SAC: its temperature)."""
 
@@ -266,6 +276,8 @@ class Learner:
             for p in self.critic_params:  # the actor's gradient must not touch the critic
                 p.requires_grad_(False)
             actor_loss = self.actor_loss(obs)
+            if self.mirror is not None and self.cfg.mirror_loss:
+                actor_loss = actor_loss + self.cfg.mirror_loss * self.mirror_loss(obs)
             self.actor_opt.zero_grad()
             actor_loss.backward()
             for p in self.critic_params:
@@ -346,8 +358,8 @@ class SACLearner(Learner):
 
     follows_actor_target = False
 
-    def __init__(self, cfg: AlgoConfig, obs_size: int, action_size: int, action_spec):
-        super().__init__(cfg, obs_size, action_size, action_spec)
+    def __init__(self, cfg: AlgoConfig, obs_size: int, action_size: int, action_spec, mirror=None):
+        super().__init__(cfg, obs_size, action_size, action_spec, mirror)
         self.log_alpha = torch.tensor(math.log(cfg.init_alpha), requires_grad=True)  # the temperature
         self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=cfg.actor_lr)
         self.target_entropy = cfg.target_entropy * action_size
@@ -388,6 +400,7 @@ def n_critics(cfg: AlgoConfig) -> int:
     return 1 if cfg.name == "ddpg" else 2
 
 
-def make_learner(cfg: AlgoConfig, obs_size: int, action_size: int, action_spec) -> Learner:
-    """The learner of ``cfg.name`` for an env with these sizes and action spec."""
-    return LEARNERS[cfg.name](cfg, obs_size, action_size, action_spec)
+def make_learner(cfg: AlgoConfig, obs_size: int, action_size: int, action_spec, mirror=None) -> Learner:
+    """The learner of ``cfg.name`` for an env with these sizes and action spec (``mirror``: the
+    observation's and action's mirror maps, for ``algo.mirror_loss``)."""
+    return LEARNERS[cfg.name](cfg, obs_size, action_size, action_spec, mirror)

@@ -45,7 +45,7 @@ from pamrun.runs.machine import Terminated, stop_signals, usable_cores
 from pamrun.task import randomize
 from pamrun.task.observation import space_sizes
 from pamrun.task.spec import EnvSpec
-from pamrun.task.symmetry import mirror_batch
+from pamrun.task.symmetry import action_map, mirror_batch, observation_map
 from pamrun.training.console import end_of_run, header_table, summary_table
 from pamrun.training.progress import TrainingProgress
 
@@ -97,7 +97,11 @@ def make_learner(cfg: Config) -> networks.Learner:
     probe = make_env(cfg)  # the env's action spec, as TorchRL sees it (the losses and exploration need it)
     spec = probe.action_spec_unbatched
     probe.close()
-    return networks.make_learner(cfg.algo, *space_sizes(cfg.muscle, cfg.env), spec)
+    sizes = space_sizes(cfg.muscle, cfg.env)
+    mirror = None
+    if cfg.algo.mirror_loss:  # the observation's and action's mirror images (pamrun/task/symmetry.py)
+        mirror = (*observation_map(sizes[1], cfg.env.speed_command, cfg.env.gait_period_s > 0), *action_map(sizes[1]))
+    return networks.make_learner(cfg.algo, *sizes, spec, mirror)
 
 
 def make_buffer(cfg: Config, curriculum: WalkCurriculum):
