@@ -30,7 +30,7 @@ def test_every_weight_has_a_term_and_every_term_a_weight():
     check_terms()
     with pytest.raises(ValueError, match=r"weights without a term: \['kjump'\]"):
         check_terms((*REWARD_KEYS, "kjump"))
-    with pytest.raises(ValueError, match=r"without a weight in RewardConfig: \['kgait'\]"):
+    with pytest.raises(ValueError, match=rf"without a weight in RewardConfig: \['{REWARD_KEYS[-1]}'\]"):
         check_terms(REWARD_KEYS[:-1])
 
 
@@ -150,3 +150,20 @@ def test_a_checkpoint_with_the_terms_as_one_array_resumes(tmp_path):
     for i, key in enumerate(ARRAY_TERMS):
         assert torch.equal(terms[key][:n], columns[:n, i]), key
     assert math.isclose(float(terms["kt"][n - 1]), 0.025 / 10) or float(terms["kt"][n - 1]) == 0.0
+
+
+def test_flight_term_charges_a_step_with_no_foot_down():
+    """reward.kflight: 0 while the robot stands on its feet, -1 a step once it is lifted clear of
+    the floor (the env's own contact rule), weighted into the reward."""
+    import gymnasium as gym
+
+    env = gym.make("pamrun/PamWalker-v0", reward={"kflight": 2.0}).unwrapped
+    env.reset(seed=0)
+    zero = np.zeros(env.action_space.shape)
+    _, r_stand, *_, info = env.step(zero)
+    assert info["reward_unweighted"]["kflight"] == 0.0
+    env.data.qpos[2] += 0.5  # the free joint's height: both feet 0.5 m up
+    env.data.qvel[:] = 0.0
+    _, r_air, *_, info = env.step(zero)
+    assert info["reward_unweighted"]["kflight"] == -1.0 and info["reward_terms"]["kflight"] == -2.0
+    env.close()

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 from pamrun.config.checks import _non_negative, _positive, _require
 
@@ -20,7 +20,7 @@ class RewardConfig:
     r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf
           - kda sum((a_prev - a_prev2)^2) - kfall [fell] - kstop n_stop / n
           + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip - kair air - kstep steps
-          + kgait (1 - clock miss) (the last eight: 0 in the thesis)
+          + kgait (1 - clock miss) - kflight [no foot down] (the last nine: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -39,10 +39,11 @@ class RewardConfig:
     # weight of the feet following the gait clock, 1 - their miss (needs env.gait_period_s > 0):
     # the miss is force on a foot the clock swings; speed, or want of load, of a foot it stands on (pamrun.task.env, "Gait clock")
     kgait: float = 0.0
+    kflight: float = 0.0  # penalty per control step that ends with neither foot on the ground (a walk has no flight)
 
     def __post_init__(self) -> None:
-        for name in ("kvx", "ky", "kz", "kv", "kt", "kda", "kfall", "kstop", "kspeed", "kslip", "kair", "kstep", "kgait"):
-            _require(math.isfinite(getattr(self, name)), name, "must be finite")
+        for f in fields(self):
+            _require(math.isfinite(getattr(self, f.name)), f.name, "must be finite")
 
 
 @dataclass

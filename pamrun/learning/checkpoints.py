@@ -363,27 +363,23 @@ ARRAY_TERMS = ("kvx", "ky", "kz", "kv", "kt", "kda", "kfall", "kstop", "kspeed",
 def check_reward_terms(buffer, folder: Path) -> None:
     """The replay buffer's transitions carry every reward term of this pamrun by weight key
     (``pamrun.task.reward.REWARD_KEYS``, under ``("next", FEATURES)``). A buffer saved with the
-    terms as one array (:data:`ARRAY_TERMS` order) is converted in place; one saved before a term
-    was added fails here, naming the buffer, rather than mid-training."""
+    terms as one array (:data:`ARRAY_TERMS` order) is converted in place. A term added to pamrun
+    after the buffer was saved is stored as 0: a resume keeps the run's own config, in which that
+    term's weight is its default 0 and no curriculum weights it, so nothing reads it."""
     import torch  # torch and TorchRL: heavy, imported where used (as everywhere in this module)
     from tensordict import TensorDict
-
 
     storage = buffer.storage._storage if len(buffer) else None
     stored = None if storage is None else storage.get(("next", FEATURES), None)
     if isinstance(stored, torch.Tensor):
         if stored.shape[-1] != len(ARRAY_TERMS):
-            raise CheckpointError(folder, f"replay buffer stores {stored.shape[-1]} reward terms, this pamrun has "
-                                          f"{len(REWARD_KEYS)} ({', '.join(REWARD_KEYS)}): the run was saved by an "
-                                          "earlier pamrun and cannot be resumed; start a new run")
+            raise CheckpointError(folder, f"replay buffer stores {stored.shape[-1]} reward terms, not the "
+                                          f"{len(ARRAY_TERMS)} of the array format ({', '.join(ARRAY_TERMS)})")
         named = {k: stored[..., i].contiguous() for i, k in enumerate(ARRAY_TERMS)}
         storage.del_(("next", FEATURES))
         storage.set(("next", FEATURES), stored := TensorDict(named, batch_size=stored.shape[:-1]))
-    missing = [] if stored is None else [k for k in REWARD_KEYS if k not in stored]
-    if missing:
-        raise CheckpointError(folder, f"replay buffer stores no {', '.join(missing)} reward term, this pamrun has "
-                                      f"{len(REWARD_KEYS)} ({', '.join(REWARD_KEYS)}): the run was saved by an "
-                                      "earlier pamrun and cannot be resumed; start a new run")
+    for key in [] if stored is None else [k for k in REWARD_KEYS if k not in stored]:
+        storage.set(("next", FEATURES, key), torch.zeros_like(stored[ARRAY_TERMS[0]]))
 
 
 def rng_states() -> dict:

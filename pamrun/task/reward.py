@@ -140,6 +140,12 @@ def gait_clock(t: Transition) -> float:
                           env.env_cfg)
 
 
+@term("kflight")
+def flight(t: Transition) -> float:
+    """-1 when the step ends with neither foot on the ground (each foot's force at most 5 % of the weight)."""
+    return -float(not any(t.contact))
+
+
 def check_terms(keys: Iterable[str] = REWARD_KEYS) -> None:
     """Every weight has a term and every term a weight; ValueError naming the odd ones out."""
     keys = tuple(keys)
