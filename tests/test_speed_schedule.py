@@ -212,3 +212,17 @@ def test_pamrun_eval_follows_a_schedule_with_the_shipped_walker(tmp_path):
         assert e["stand_still_feet_down_share"] < 0.9 and e["stand_still_drift_m"] > 0.5
     board = json.loads((out / "leaderboard.json").read_text())
     assert board["agents"][0]["speed_tracking_rms_m_s_mean"] > 0.3
+
+
+@pytest.mark.slow
+def test_a_run_trains_with_drawn_starts_and_stops(tmp_path):
+    """A training whose v* changes and stops within its episodes (the clock following it, kspeed,
+    kgait and kstep paying) runs, evaluates and saves its agents."""
+    from tests.test_train import TINY, train_here
+
+    run = tmp_path / "run"
+    assert train_here(run, *TINY, "train.max_frames=400", "train.eval_every_frames=200", "train.eval_episodes=1",
+                      "env.speed_command=true", "env.speed_range_m_s=[0,1.2]", "env.speed_changes=2",
+                      "env.speed_stop_share=0.3", "env.gait_period_s=0.8", "env.gait_follows_speed=true",
+                      "reward.kspeed=1", "reward.kgait=1", "reward.kstep=0.5") == "max_frames"
+    assert (run / "checkpoints" / "last.pt").exists() and (run / "evals.csv").exists()
