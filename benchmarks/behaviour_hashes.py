@@ -6,7 +6,8 @@ Runs, with fixed seeds, ``pamrun train experiment=thesis train=smoke``, a 5,000-
 ``pamrun train experiment=walker`` (evaluating every 2,500 frames) and ``pamrun eval`` of the
 shipped walker, then prints the md5 of ``episodes.csv`` and ``evals.csv`` (their rows without
 the wall-clock columns; evals.csv's gait means, added after the lines below were taken, in a
-line of their own) and of the evaluation's ``episodes.jsonl``, each with its row count.
+line of their own) and of the evaluation's ``episodes.jsonl``, each with its row count (its
+lines over the keys they had then; the keys added later, :data:`LATER_KEYS`, in a line of their own).
 Equal lines before and after a change mean the same training and the same evaluation, bit for
 bit, on this machine (floating point may differ on another CPU). On 2026-12-04 (2-core x86_64),
 before and after the package split of issue 36:
@@ -23,6 +24,7 @@ from __future__ import annotations
 import argparse
 import csv
 import hashlib
+import json
 import subprocess
 import tempfile
 from pathlib import Path
@@ -32,6 +34,9 @@ WALL_CLOCK = {"wall_time_s", "eval_s"}
 # evals.csv's columns when the fingerprints above were taken (its later columns, the gait means, are hashed apart)
 EVAL_COLUMNS = ("frames", "episodes", "walk_pass_rate", "stand_rate", "fall_rate", "distance_mean", "distance_min",
                 "duration_mean", "max_abs_y_max", "return_mean", "pressure_change_mean", "select_pass_rate", "best")
+# episodes.jsonl's keys added after the lines above were taken (per episode, and in its "steps")
+LATER_KEYS = ("speed_tracking_rms_m_s", "stand_still_feet_down_share", "stand_still_drift_m")
+LATER_STEP_KEYS = ("target_speed_m_s",)
 RUNS = {
     "thesis": ["train", "experiment=thesis", "train=smoke", "seed=0"],
     "walker": ["train", "experiment=walker", "train.max_frames=5000", "train.eval_every_frames=2500", "seed=0"],
@@ -47,8 +52,16 @@ def csv_hash(path: Path, columns=None, leave_out=()) -> tuple[str, int]:
     return hashlib.md5(text.encode()).hexdigest(), len(rows)
 
 
-def jsonl_hash(path: Path) -> tuple[str, int]:
-    lines = path.read_text().splitlines()
+def jsonl_hash(path: Path, later: bool = False) -> tuple[str, int]:
+    """md5 of the lines over the keys they had when the fingerprints were taken (``later``: over
+    :data:`LATER_KEYS` and :data:`LATER_STEP_KEYS` only), each written as pamrun writes it."""
+    lines = []
+    for line in path.read_text().splitlines():
+        record = json.loads(line)
+        keep = {k: v for k, v in record.items() if k == "steps" or (k in LATER_KEYS) == later}
+        if "steps" in keep:
+            keep["steps"] = {k: v for k, v in keep["steps"].items() if (k in LATER_STEP_KEYS) == later}
+        lines.append(json.dumps(keep))
     return hashlib.md5("\n".join(lines).encode()).hexdigest(), len(lines)
 
 
@@ -65,6 +78,7 @@ def main() -> None:
         print(name, "evals.csv", *csv_hash(out / name / "evals.csv", EVAL_COLUMNS))
         print(name, "evals.csv gait", *csv_hash(out / name / "evals.csv", leave_out=EVAL_COLUMNS))
     print("eval episodes.jsonl", *jsonl_hash(out / "eval" / "episodes.jsonl"))
+    print("eval episodes.jsonl later keys", *jsonl_hash(out / "eval" / "episodes.jsonl", later=True))
 
 
 if __name__ == "__main__":

@@ -8,7 +8,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any, Optional
 
 from pamrun.config.checks import ConfigError, _non_negative, _positive, _require
-from pamrun.config.task import ENV_SECTIONS
+from pamrun.config.task import ENV_SECTIONS, check_speed_schedule
 
 # Aggregates an agent can be ranked by (``eval.rank_by``; pamrun.evaluation.episodes.aggregate computes them);
 # larger is better unless prefixed '-'.
@@ -132,6 +132,10 @@ class EvalConfig:
     # v* [m/s], the speed an agent trained with env.speed_command is told, held the whole episode
     # (sets env.target_speed_m_s; an agent's drawn speed range is not used here). None = its own.
     speed_m_s: Optional[float] = None
+    # [[time_s, speed_m_s], ...]: v* piecewise constant within each episode, e.g. [[0,0],[2.5,0.6],[5,1.2]]
+    # (sets env.speed_schedule; an agent without env.speed_command is not told it, only measured
+    # against it: pamrun.evaluation.tracking). [] = off (typed Any, as env.speed_schedule)
+    speed_schedule: list[Any] = field(default_factory=list)
     # Walk test (§10.3): walk walk_duration_s without falling, never leaving |y| <= walk_lateral_m,
     # ending at least walk_distance_m forward.
     walk_duration_s: float = 10.0
@@ -169,6 +173,10 @@ class EvalConfig:
         _require(self.speed_m_s is None or (math.isfinite(self.speed_m_s) and self.speed_m_s >= 0), "speed_m_s",
                  f"must be a speed >= 0 in m/s, got {self.speed_m_s}")
         _positive(self, "episode_s", "walk_duration_s", "walk_lateral_m")
+        self.speed_schedule = check_speed_schedule(self.speed_schedule, self.episode_s, "speed_schedule",
+                                                   "eval.episode_s")
+        _require(not self.speed_schedule or self.speed_m_s is None, "speed_schedule",
+                 "sets v* itself: leave eval.speed_m_s unset")
         _require(self.walk_duration_s <= self.episode_s + 1e-9, "walk_duration_s",
                  f"must be <= episode_s ({self.episode_s} s): an episode ends before the test could pass")
         _require(len(self.rank_by) >= 1, "rank_by", "needs at least one metric")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
+from typing import Any
 
 from pamrun.config.checks import _non_negative, _positive, _require
 
@@ -67,8 +68,16 @@ class EnvConfig:
     step_length_m: float = 0.4
     speed_command: bool = False  # the observation ends with v*, the commanded speed [m/s]: the policy is told it
     # [low, high]: v* drawn uniformly per episode (to train a commanded speed; needs speed_command);
-    # [] = v* is target_speed_m_s (pamrun eval eval.speed_m_s=V sets it)
+    # [] = v* is target_speed_m_s (pamrun eval eval.speed_m_s=V sets it). 0 (standing) is a speed
     speed_range_m_s: list[float] = field(default_factory=list)
+    # [[time_s, speed_m_s], ...]: v* piecewise constant within the episode, from 0 s, times increasing
+    # and inside episode_s, rounded to control steps (pamrun eval eval.speed_schedule sets it); [] = off
+    # (typed Any: OmegaConf does not convert the numbers of nested lists; checked and made floats here)
+    speed_schedule: list[Any] = field(default_factory=list)
+    # v* drawn again from speed_range_m_s this many times per episode, at times drawn uniformly in it
+    speed_changes: int = 0
+    # chance that a v* drawn from speed_range_m_s (at reset or a change) is 0 instead: learning to stop
+    speed_stop_share: float = 0.0
     # The command applied is alpha a + (1 - alpha) a_prev: a first-order low-pass of the policy's
     # action a (a_prev the last applied command, 0 at reset), for smaller pressure steps; 1 = off
     action_filter_alpha: float = 1.0
@@ -90,7 +99,7 @@ class EnvConfig:
     stance_knee_deg: float = 0.0
     # The clock's period and reward.kstep's step length follow the episode's commanded speed v*,
     # each as its square root, so v* = 2 L* / T at every v* (pamrun's choice, after human walking;
-    # the rule: pamrun.task.env, "Gait clock", gait_at_speed)
+    # the rule: pamrun.task.env, "Gait clock", gait_at_speed); at v* = 0 the clock stops, both feet asked down
     gait_follows_speed: bool = False
     reset_noise_rad: float = 0.0  # uniform noise on joint angles at reset
     reset_velocity_noise: float = 0.0  # uniform noise on joint velocities [rad/s]
@@ -114,8 +123,8 @@ class EnvConfig:
                      "needs a gait clock (env.gait_period_s > 0, e.g. 0.8)")
         _require(not self.gait_follows_speed or self.gait_period_s > 0, "gait_follows_speed",
                  "needs a gait clock (env.gait_period_s > 0, e.g. 0.8)")
-        _require(not self.gait_follows_speed or (self.target_speed_m_s > 0 and min(self.speed_range_m_s, default=1) > 0),
-                 "gait_follows_speed", "needs commanded speeds above 0 (env.target_speed_m_s, env.speed_range_m_s)")
+        _require(not self.gait_follows_speed or self.target_speed_m_s >= 0, "target_speed_m_s",
+                 f"must be >= 0 with env.gait_follows_speed, got {self.target_speed_m_s}")
         _require(0 < self.action_filter_alpha <= 1, "action_filter_alpha",
                  f"must lie in (0, 1] (1 = no filter), got {self.action_filter_alpha}")
         r = list(self.speed_range_m_s)
@@ -123,6 +132,7 @@ class EnvConfig:
                  f"must be [] or [low, high] with 0 <= low <= high in m/s, got {r}")
         _require(not r or self.speed_command, "speed_range_m_s",
                  "needs env.speed_command=true: a policy asked for a drawn speed must be told it")
+        self._check_speed_changes()
         _require(len(self.push_impulse_ns) == 3 and all(math.isfinite(v) for v in self.push_impulse_ns),
                  "push_impulse_ns", f"must be three finite values [x, y, z] in N s, got {list(self.push_impulse_ns)}")
         if any(self.push_impulse_ns):
@@ -143,3 +153,33 @@ class EnvConfig:
                 f"of times, got {small}",
             )
         _require(self.episode_s >= self.control_dt_s, "episode_s", "must be >= control_dt_s")
+
+    def _check_speed_changes(self) -> None:
+        """The speed schedule and the drawn speed changes (each failure names its key)."""
+        self.speed_schedule = check_speed_schedule(self.speed_schedule, self.episode_s, "speed_schedule",
+                                                   "env.episode_s")
+        _require(not self.speed_schedule or not self.speed_range_m_s, "speed_schedule",
+                 "sets v* itself: leave env.speed_range_m_s empty")
+        _require(self.speed_changes >= 0, "speed_changes", f"must be >= 0, got {self.speed_changes}")
+        _require(0 <= self.speed_stop_share <= 1, "speed_stop_share", f"must lie in [0, 1], got {self.speed_stop_share}")
+        for name in ("speed_changes", "speed_stop_share"):
+            _require(not getattr(self, name) or self.speed_range_m_s, name,
+                     "draws from env.speed_range_m_s: set it, e.g. [0, 1.2]")
+
+
+def check_speed_schedule(schedule: list, episode_s: float, key: str, episode_key: str) -> list[list[float]]:
+    """``schedule`` as floats, checked: [] or [[time_s, speed_m_s], ...], first time 0, times
+    increasing and before ``episode_s`` (named ``episode_key``), speeds finite and >= 0;
+    ConfigError naming ``key``."""
+    entries = [list(e) if isinstance(e, (list, tuple)) else e for e in schedule]
+    for i, entry in enumerate(entries):
+        _require(isinstance(entry, list) and len(entry) == 2
+                 and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in entry),
+                 key, f"entry {i} must be [time_s, speed_m_s] (two finite numbers), got {entry}")
+        _require(entry[1] >= 0, key, f"entry {i}: speed must be >= 0 m/s, got {entry[1]}")
+    times = [e[0] for e in entries]
+    _require(not times or times[0] == 0, key, f"must start at time 0 s, got {times[:1]}")
+    _require(all(a < b for a, b in zip(times, times[1:])), key, f"times must increase, got {times}")
+    _require(not times or times[-1] < episode_s, key,
+             f"time {times[-1] if times else 0} s is not inside the episode ({episode_key} = {episode_s} s)")
+    return [[float(t), float(v)] for t, v in entries]

@@ -49,6 +49,11 @@ def start(cfg, spec: str, out: Path) -> tuple[Any, list[Agent], list[EnvSpec], l
         console.print(f"[red]skipped[/red] {err['path']}: {err['error']}", soft_wrap=True)
     if not agents:
         raise SystemExit(f"pamrun: no usable checkpoint in {spec} ({len(errors)} unreadable; see above)")
+    asked = "eval.speed_schedule" if cfg.eval.speed_schedule else "eval.speed_m_s" if cfg.eval.speed_m_s is not None else ""
+    for agent, env in zip(agents, envs):
+        if asked and not env.env.speed_command:
+            console.print(f"[yellow]note[/yellow] {agent.label} is not told the commanded speed (its env.speed_command is "
+                          f"false): {asked} is only what its speed tracking is measured against", soft_wrap=True)
     return console, agents, envs, errors
 
 

@@ -19,6 +19,7 @@ from typing import Any, Callable
 import numpy as np
 
 from pamrun.evaluation.metrics import GAIT_METRICS, GaitSpec, episode_metrics
+from pamrun.evaluation.tracking import TRACKING_METRICS, tracking_metrics
 from pamrun.learning.checkpoints import Agent
 from pamrun.physics.body import build_model
 from pamrun.task.criteria import stood, walk_passed
@@ -55,9 +56,10 @@ def agent_env(agent: Agent, cfg) -> EnvSpec:
 
 # What run_episode records per control step (pamrun.evaluation.metrics reads them): torso position, joint
 # angles, velocities and muscle torques (10), pressures and contractions of the 20 muscles, the
-# feet's normal forces (2) and contact spheres' positions (2, 4, 3), and the action.
+# feet's normal forces (2) and contact spheres' positions (2, 4, 3), the action, and the commanded
+# speed v* (pamrun.evaluation.tracking reads it).
 STEP_KEYS = ("x_m", "y_m", "z_m", "joint_angle_rad", "joint_velocity_rad_s", "joint_torque_nm", "pressure_kpa",
-             "contraction_pct", "foot_force_n", "sole_xyz_m", "action")
+             "contraction_pct", "foot_force_n", "sole_xyz_m", "action", "target_speed_m_s")
 
 
 def gait_spec(spec: EnvSpec) -> GaitSpec:
@@ -91,7 +93,8 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
                            ("joint_angle_rad", env.data.qpos[qpos]), ("joint_velocity_rad_s", env.data.qvel[qvel]),
                            ("joint_torque_nm", info["joint_torque_nm"]), ("pressure_kpa", info["pressure_kpa"].ravel()),
                            ("contraction_pct", info["contraction_pct"].ravel()), ("foot_force_n", info["foot_force_n"]),
-                           ("sole_xyz_m", info["sole_xyz_m"]), ("action", action)):
+                           ("sole_xyz_m", info["sole_xyz_m"]), ("action", action),
+                           ("target_speed_m_s", info["target_speed_m_s"])):
             steps[key].append(value)
         if frame_sink:
             frame_sink(env.render())
@@ -103,8 +106,9 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
     distance = float(info["distance"])
     arrays = {"t_s": np.arange(1, n + 1) * env.env_cfg.control_dt_s,
               **{k: np.asarray(v, dtype=float) for k, v in steps.items()}}
-    gait = episode_metrics(arrays, GaitSpec.from_configs(env.body_cfg, env.muscle_cfg, env.mass_kg,
-                                                         env.env_cfg.control_dt_s))
+    spec = GaitSpec.from_configs(env.body_cfg, env.muscle_cfg, env.mass_kg, env.env_cfg.control_dt_s)
+    gait = episode_metrics(arrays, spec)
+    gait.update(tracking_metrics(arrays, spec.contact_threshold_n, env.env_cfg.control_dt_s))
     out = {
         "seed": seed,
         "return": float(total),
@@ -229,7 +233,7 @@ def aggregate(episodes: list[dict], ecfg) -> dict[str, Any]:
             out["distance_min"] = float(values.min())
         if name == "max_abs_y":
             out["max_abs_y_max"] = float(values.max())
-    for name in GAIT_METRICS:
+    for name in (*GAIT_METRICS, *TRACKING_METRICS):
         values = np.array([e.get(name, np.nan) for e in episodes], dtype=float)
         values = values[np.isfinite(values)]
         out[f"{name}_mean"] = float(values.mean()) if len(values) else float("nan")

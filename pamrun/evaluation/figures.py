@@ -303,3 +303,29 @@ def robustness(json_path: Path, png_path: Path) -> Path:
     ax.set_title(f"Robustness: walk-test passes of {data['episodes']} episodes per cell, seeds "
                  f"{data['seeds'][0]}..{data['seeds'][1]} (95 % Wilson interval)", fontsize=9)
     return save_figure(fig, png_path, dpi=110)
+
+
+def speed(episodes: list[dict], png_path: Path, max_episodes: int = 5) -> Path:
+    """Commanded speed v* (a step line) against the measured forward speed (over
+    :data:`pamrun.evaluation.tracking.SMOOTH_S` windows) over time, for the first
+    ``max_episodes`` episodes of ``episodes`` (records of ``episodes.jsonl``, with steps)."""
+    from pamrun.evaluation.tracking import SMOOTH_S, smoothed_speed
+
+    fig, ax = plt.subplots(figsize=(9, 4))
+    colors = plt.cm.tab10(np.arange(max_episodes) % 10)
+    for color, e in zip(colors, episodes[:max_episodes]):
+        s = e["steps"]
+        t, command = np.asarray(s["t_s"]), np.asarray(s.get("target_speed_m_s", []))
+        if len(command):
+            ax.step(np.r_[0.0, t], np.r_[command[0], command], where="post", color=color, lw=2.2, alpha=0.45)
+        ts, measured = smoothed_speed(t, s["x_m"], SMOOTH_S)
+        rms = e.get("speed_tracking_rms_m_s", float("nan"))
+        ax.plot(ts, measured, color=color, lw=1.0,
+                label=f"{e['agent']} ep {e['episode']}: tracking RMS {rms:.2f} m/s" + (" (fell)" if e["fell"] else ""))
+    ax.plot([], [], color="grey", lw=2.2, alpha=0.45, label="commanded v*")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("forward speed [m/s]")
+    ax.set_title(f"Commanded against measured speed (measured over {SMOOTH_S} s windows)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    return save_figure(fig, png_path, dpi=110)

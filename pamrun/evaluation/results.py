@@ -11,6 +11,7 @@ from pathlib import Path
 from pamrun.evaluation.episodes import aggregate, gait_spec
 from pamrun.evaluation.metrics import GAIT_METRICS
 from pamrun.evaluation.ranking import rank, selection_reason
+from pamrun.evaluation.tracking import TRACKING_METRICS
 from pamrun.learning.checkpoints import Agent, save_agent_copy
 from pamrun.runs.directory import RunFiles
 from pamrun.runs.files import write_json
@@ -21,7 +22,7 @@ LEADERBOARD_FIELDS = ("rank", "agent", "episodes", "walk_test", "walk_passes", "
                       "walk_pass_ci_high", "stand_rate", "distance_mean", "distance_std", "distance_min",
                       "return_mean", "return_std", "duration_mean", "duration_std", "fall_rate", "physics_error_rate",
                       "max_abs_y_mean", "max_abs_y_max", "speed_mean", "speed_std", "pressure_change_mean", "pressure_change_std",
-                      *(f"{m}_{s}" for m in GAIT_METRICS for s in ("mean", "std")),
+                      *(f"{m}_{s}" for m in (*GAIT_METRICS, *TRACKING_METRICS) for s in ("mean", "std")),
                       "train_episode", "train_reward", "path")
 
 
@@ -88,6 +89,10 @@ def draw_figures(out: Path, ecfg, agents: list[Agent], envs: list[EnvSpec], resu
         figures.gait(figures.read_episodes_jsonl(out / "episodes.jsonl", {best.label}), gait.joint_limits_rad,
                    gait.contact_threshold_n, out / "gait.png")
         written.append("gait.png")
+        best_env = envs[agents.index(best)].env
+        if best_env.speed_command or best_env.speed_schedule:  # a commanded speed to follow
+            figures.speed(figures.read_episodes_jsonl(out / "episodes.jsonl", {best.label}), out / "speed.png")
+            written.append("speed.png")
     runs = list(dict.fromkeys(a.run_dir for a in agents if a.run_dir and RunFiles(a.run_dir).episodes.exists()))
     for run in runs:
         name = "training.png" if len(runs) == 1 else f"training_{run.name}.png"

@@ -44,14 +44,15 @@ def foot_miss(swing: float, share: float, speed_m_s: float, lift_m: float, knee_
 
 
 def followed(phase: float, soles_before: np.ndarray, soles: np.ndarray, shares: list[float], knees: list[float],
-             sole_radius_m: float, env: EnvConfig) -> float:
+             sole_radius_m: float, env: EnvConfig, stopped: bool = False) -> float:
     """1 - (1/2) sum_feet miss over one control step (``reward.kgait``'s feature): the feet's
     contact points (2, k, 3) before and after it, their ground forces as shares of the weight
-    and the legs' knee flexions after it."""
+    and the legs' knee flexions after it (``stopped``: the clock stands still, both feet asked
+    down)."""
     moved = (soles[:, :, :2].mean(axis=1) - soles_before[:, :, :2].mean(axis=1)).tolist()
     lifts = (soles[:, :, 2].min(axis=1) - sole_radius_m).tolist()
     gait = 0.0
-    for foot, swing in enumerate(swing_weights(phase, env.swing_share)):
+    for foot, swing in enumerate((0.0, 0.0) if stopped else swing_weights(phase, env.swing_share)):
         speed = math.hypot(*moved[foot]) / env.control_dt_s
         gait -= 0.5 * foot_miss(swing, shares[foot], speed, lifts[foot], knees[foot], env)
     return gait + 1.0
@@ -60,8 +61,10 @@ def followed(phase: float, soles_before: np.ndarray, soles: np.ndarray, shares: 
 def gait_at_speed(env: EnvConfig, speed_m_s: float) -> tuple[float, float]:
     """The clock's period T [s] and kstep's step length L* [m] at commanded speed v*
     (``env.gait_follows_speed``: T = T0 sqrt(v0 / v*), L* = L0 sqrt(v* / v0), v0 = 2 L0 / T0;
-    otherwise ``env.gait_period_s``, ``env.step_length_m``)."""
+    at v* = 0 the clock stops, T infinite, L* 0; otherwise ``env.gait_period_s``, ``env.step_length_m``)."""
     if not env.gait_follows_speed:
         return env.gait_period_s, env.step_length_m
+    if speed_m_s <= 0:
+        return math.inf, 0.0
     ratio = math.sqrt(speed_m_s * env.gait_period_s / (2 * env.step_length_m))  # sqrt(v* / v0)
     return env.gait_period_s / ratio, env.step_length_m * ratio

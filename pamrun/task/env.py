@@ -40,10 +40,14 @@ argument ``features`` (e.g. a curriculum's), are computed; the others are 0. Eve
 in a step whose physics blew up.
 
 ## Commanded speed and gait clock
-v* is ``env.target_speed_m_s``, or drawn per episode from ``env.speed_range_m_s``. With
-``env.gait_period_s`` T > 0 a clock phi = phi0 + t / T (mod 1) runs, phi0 drawn per episode;
-the right foot swings in the first ``env.swing_share`` of each period, the left half a period
-later (:mod:`pamrun.task.clock`).
+v* is ``env.target_speed_m_s``, or drawn per episode from ``env.speed_range_m_s`` (and again
+``env.speed_changes`` times within it, 0 with chance ``env.speed_stop_share``), or piecewise
+constant after ``env.speed_schedule``; a change applies from the control step nearest its time
+on (its observation, reward and info). With ``env.gait_period_s`` T > 0 a clock phi = phi0 + t / T (mod 1) runs, phi0
+drawn per episode; the right foot swings in the first ``env.swing_share`` of each period, the
+left half a period later (:mod:`pamrun.task.clock`). With ``env.gait_follows_speed`` T follows
+v* (the phase runs on from where it was when v* changes) and at v* = 0 the clock stops, both
+feet asked down.
 
 ## Perturbations
 ``env.observation_noise_std`` (Gaussian noise on the 33 sensed values), ``env.push_impulse_ns``
@@ -63,7 +67,7 @@ or when the physics state is not finite (``info["physics_error"]``).
 ``x``, ``y``, ``z``, ``distance`` [m], ``reward_terms`` (weighted) and ``reward_unweighted``
 (the features), each a dict by weight key, ``pressure_kpa``, ``contraction_pct`` (10, 2),
 ``foot_force_n`` (2,) [N], ``sole_xyz_m`` (2, 4, 3) [m], ``joint_torque_nm`` (10,) [N m],
-``fell``, ``physics_error``, ``target_speed_m_s``, and ``air_nl`` [normal litres] when the
+``fell``, ``physics_error``, ``target_speed_m_s`` (v* now), and ``air_nl`` [normal litres] when the
 reward computes ``kair``. With the keyword argument ``lean_info=True`` only ``distance``,
 ``physics_error``, ``reward_terms``, ``reward_unweighted`` (and ``air_nl``): what a training run
 reads (``pamrun.training.recipe.make_env``'s info readers), without the cost of the rest.
@@ -127,10 +131,25 @@ class Episode:
     soles: np.ndarray | None = None  # the feet's contact points (2, k, 3) after the last step
     contact: list[bool] = field(default_factory=lambda: [False, False])  # the feet on the ground then
     gas: np.ndarray | None = None  # the muscles' gas P V [kPa l] then (when the env meters air)
+    changes: list[tuple[int, float]] = field(default_factory=list)  # v*'s changes to come: (control step, v*)
+    clock_step0: int = 0  # the control step the clock runs at its period from (phase0 its phase then)
 
     def phase(self, env: EnvConfig) -> float:
         """The gait clock's phase phi in [0, 1) now."""
-        return clock.phase(self.phase0, self.steps, env.control_dt_s, self.gait_period_s)
+        return clock.phase(self.phase0, self.steps - self.clock_step0, env.control_dt_s, self.gait_period_s)
+
+    @property
+    def clock_stopped(self) -> bool:
+        """Whether the clock stands still, both feet asked down (v* = 0 with ``env.gait_follows_speed``)."""
+        return math.isinf(self.gait_period_s)
+
+    def change_speed(self, env: EnvConfig) -> None:
+        """Apply the changes of v* due by this step; the clock goes on from its phase now."""
+        while self.changes and self.changes[0][0] <= self.steps:
+            _, self.target_speed_m_s = self.changes.pop(0)
+        if env.gait_period_s > 0:
+            self.phase0, self.clock_step0 = self.phase(env), self.steps
+        self.gait_period_s, self.step_length_m = gait_at_speed(env, self.target_speed_m_s)
 
 
 class PamWalkerEnv(gym.Env):
@@ -239,8 +258,26 @@ class PamWalkerEnv(gym.Env):
         first = int(round(cfg.push_time_s / cfg.control_dt_s)) + 1
         return range(first, first + n_push), np.asarray(cfg.push_impulse_ns, float) / (n_push * cfg.control_dt_s)
 
-    def _new_episode(self, speed_m_s: float, phase0: float = 0.0) -> Episode:
-        return Episode(speed_m_s, *gait_at_speed(self.env_cfg, speed_m_s), np.zeros(self.n_actions), phase0)
+    def _new_episode(self, speed_m_s: float, phase0: float = 0.0, changes: list | None = None) -> Episode:
+        return Episode(speed_m_s, *gait_at_speed(self.env_cfg, speed_m_s), np.zeros(self.n_actions), phase0,
+                       changes=changes or [])
+
+    def _speed_plan(self, speed_m_s: float) -> tuple[float, list[tuple[int, float]]]:
+        """v* at reset and its changes [(control step, v*)]: ``env.speed_schedule``'s, else
+        ``speed_m_s`` and, with ``env.speed_changes``/``env.speed_stop_share``, drawn ones (drawn
+        after the start pose and the clock's phase, which they leave as they were)."""
+        cfg, rng = self.env_cfg, self.np_random
+        to_step = lambda t: max(1, round(t / cfg.control_dt_s))  # noqa: E731  (a change applies after a step)
+        if cfg.speed_schedule:
+            (_, first), *rest = cfg.speed_schedule
+            return float(first), [(to_step(t), float(v)) for t, v in rest]
+        if not (cfg.speed_changes or cfg.speed_stop_share):
+            return speed_m_s, []
+        times = np.sort(rng.uniform(0.0, cfg.episode_s, cfg.speed_changes)).tolist()
+        speeds = [speed_m_s, *rng.uniform(*cfg.speed_range_m_s, cfg.speed_changes).tolist()]
+        if cfg.speed_stop_share:
+            speeds = [0.0 if stop else v for v, stop in zip(speeds, rng.uniform(size=len(speeds)) < cfg.speed_stop_share)]
+        return speeds[0], [(to_step(t), v) for t, v in zip(times, speeds[1:])]
 
     # Per-episode values, read-only (the episode's state is ``self.episode``).
     target_speed_m_s = property(lambda self: self.episode.target_speed_m_s, doc="v*, this episode's [m/s]")
@@ -269,7 +306,9 @@ class PamWalkerEnv(gym.Env):
         self.drive.reset()
         # v*, then the clock's phase, each after the start noise: a seed's start pose depends on neither
         speed = float(self.np_random.uniform(*cfg.speed_range_m_s)) if cfg.speed_range_m_s else cfg.target_speed_m_s
-        ep = self.episode = self._new_episode(speed, float(self.np_random.uniform()) if self.gait_clock else 0.0)
+        phase0 = float(self.np_random.uniform()) if self.gait_clock else 0.0
+        speed, changes = self._speed_plan(speed)
+        ep = self.episode = self._new_episode(speed, phase0, changes)
         ep.x0 = float(d.qpos[0])
         _, forces, ep.soles, torso, obs = self._sense()
         ep.contact = self._contact(forces)
@@ -285,6 +324,8 @@ class PamWalkerEnv(gym.Env):
         ep = self.episode
         self._advance(action, voltage)
         ep.steps += 1
+        if ep.changes and ep.changes[0][0] <= ep.steps:  # v* changes from this step's observation and reward on
+            ep.change_speed(self.env_cfg)
         previous, ep.prev_action = ep.prev_action, action
         # MuJoCo resets the state itself when it meets NaN/Inf, so its warnings count too.
         physics_error, forces, soles, torso, obs = self._sense()
@@ -425,5 +466,5 @@ class PamWalkerEnv(gym.Env):
             "joint_torque_nm": self._qfrc_actuator[self.qvel_idx],
             "fell": bool(fell),
             "physics_error": np.bool_(physics_error),
-            "target_speed_m_s": np.float64(self.episode.target_speed_m_s),  # v*, this episode's
+            "target_speed_m_s": np.float64(self.episode.target_speed_m_s),  # v* now
         }

@@ -120,11 +120,13 @@ def air(t: Transition) -> float:
 
 @term("kstep")
 def step_miss(t: Transition) -> float:
-    """Minus sum over the feet touching down in the step of (s - L*)^2 / L* [m]."""
+    """Minus sum over the feet touching down in the step of (s - L*)^2 / L* [m] (at L* = 0, standing:
+    s^2 / ``env.step_length_m``)."""
     target, miss = t.episode.step_length_m, 0.0
+    scale = target or t.env.env_cfg.step_length_m
     for foot in (0, 1):
         if t.contact[foot] and not t.contact_before[foot]:
-            miss += (step_length(t.soles, foot) - target) ** 2 / target
+            miss += (step_length(t.soles, foot) - target) ** 2 / scale
     return -miss
 
 
@@ -137,7 +139,7 @@ def gait_clock(t: Transition) -> float:
     shares = [f / env.weight_n for f in t.forces_n]
     knees = [t.qpos[adr] for adr in env.knee_addresses]
     return clock.followed(t.episode.phase(env.env_cfg), t.soles_before, t.soles, shares, knees, env.sole_radius_m,
-                          env.env_cfg)
+                          env.env_cfg, t.episode.clock_stopped)
 
 
 @term("kflight")
