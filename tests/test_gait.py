@@ -354,3 +354,92 @@ def test_a_foot_rolling_over_its_toe_does_not_slip_but_a_sliding_toe_does():
     sliding = soles.copy()
     sliding[..., 0] += (0.3 * np.arange(n) * DT)[:, None, None]
     assert episode_metrics({**steps, "sole_xyz_m": sliding}, spec())["foot_slip_m_s"] == pytest.approx(0.3)
+
+
+# --------------------------------------------------------------------------- support and knee phases
+
+KNEE_LIMITS = LIMITS.copy()
+KNEE_LIMITS[[2, 7]] = [0.0, math.pi / 2]  # the knees: straight at their lower stop, 90 deg at the upper
+
+
+def bent_knees(down: np.ndarray, stance_deg: tuple[float, float], swing_deg: tuple[float, float]) -> np.ndarray:
+    """Joint angles (n, 10) [rad]: in the k-th row of each run of a foot's rows in contact (off the
+    ground) of length r, its knee bends stance_deg (swing_deg) of the foot x sin(pi (k + 1) / (r + 1)),
+    the full value in the middle row of an odd run."""
+    q = np.zeros((len(down), 10))
+    for foot, knee in ((0, 2), (1, 7)):
+        start = 0
+        for row in range(1, len(down) + 1):
+            if row == len(down) or down[row, foot] != down[start, foot]:
+                peak = (stance_deg if down[start, foot] else swing_deg)[foot]
+                r = row - start
+                q[start:row, knee] = np.radians(peak) * np.sin(np.pi * (np.arange(r) + 1) / (r + 1))
+                start = row
+    return q
+
+
+def test_double_support_and_flight_are_shares_of_the_time_after_the_first_second():
+    # stride 40 rows, each foot down 24 of them, the left half a stride after the right: both down
+    # in rows 0-3 and 20-23 of each stride, 8 of 40 = 20 %, never both off
+    m = episode_metrics(walk(200, 40, 20, 24, 0.4, 0.4), spec())
+    assert m["double_support_share"] == pytest.approx(0.2, abs=1e-12)
+    assert m["flight_share"] == 0.0
+    # each foot down 18 of 40 rows: both off in rows 18-19 and 38-39, 4 of 40 = 10 %
+    running = walk(200, 40, 20, 18, 0.4, 0.4)
+    m = episode_metrics(running, spec())
+    assert m["double_support_share"] == 0.0 and m["flight_share"] == pytest.approx(0.1, abs=1e-12)
+    running["foot_force_n"][:40] = 300.0  # standing through the first second (rows 0-39): not counted
+    assert episode_metrics(running, spec())["flight_share"] == pytest.approx(0.1, abs=1e-12)
+    running["foot_force_n"][:41] = 300.0  # ... but the row ending at 1.025 s is
+    assert episode_metrics(running, spec())["double_support_share"] == pytest.approx(1 / 160, abs=1e-12)
+    for key in ("double_support_share", "flight_share"):
+        assert math.isnan(episode_metrics(still(40), spec())[key])  # 1 s long: nothing after the first second
+    assert episode_metrics(still(41), spec())["double_support_share"] == 1.0
+
+
+def test_knee_at_mid_stance_and_its_peak_in_swing():
+    """Stances of 23 rows and swings of 17: the right knee straight in stance, the left bent 10
+    deg at mid-stance; both peak at 60 deg in swing. The phases the episode starts or ends in
+    (bent 30 and 90 deg here) and those beginning in its first second (a swing peaking at 30
+    deg) do not count."""
+    steps = walk(210, 40, 20, 23, 0.4, 0.4)  # ends in a right stance (rows 200-209) and a left swing (203-209)
+    down = steps["foot_force_n"] > 0
+    q = bent_knees(down, stance_deg=(0.0, 10.0), swing_deg=(60.0, 60.0))
+    q[:23, 2] = q[200:, 2] = np.radians(30.0)  # the right foot's first and last stances: no touchdown, no lift-off
+    q[203:, 7] = np.radians(90.0)  # the left foot's last swing: no touchdown
+    q[3:20, 7] *= 0.5  # the left foot's first swing (rows 3-19), in the first second
+    steps["joint_angle_rad"] = q
+    m = episode_metrics(steps, spec(joint_limits_rad=KNEE_LIMITS))
+    # right stances from rows 40, 80, 120, 160 (0 deg), left from 60, ..., 180 (10 deg; the one from
+    # row 20 begins at 0.525 s): (4 x 0 + 4 x 10) / 8
+    assert m["knee_midstance_deg"] == pytest.approx(5.0, abs=1e-9)
+    assert m["knee_swing_peak_deg"] == pytest.approx(60.0, abs=1e-9)
+    q[:, [2, 7]] = np.where(down, np.radians(-3.0), q[:, [2, 7]])  # stance knees pressed past their stop
+    assert episode_metrics(steps, spec(joint_limits_rad=KNEE_LIMITS))["knee_midstance_deg"] == 0.0
+    # the flexion counts from the stop: with the knee's stop at -0.5 rad, -3 deg is 25.6 deg bent
+    assert episode_metrics(steps, spec())["knee_midstance_deg"] == pytest.approx(math.degrees(0.5) - 3.0, abs=1e-9)
+
+
+def test_a_contact_flicker_of_one_row_is_no_phase():
+    """A foot that lifts for one row in a stance and touches down for one row in a swing keeps
+    one stance and one swing: the metrics of the clean motion. Split, the stance would add a
+    swing peaking at 0 deg, the swing a one-row stance bent 39 deg and a swing peaking 30 deg."""
+    steps = walk(210, 40, 20, 23, 0.4, 0.4)
+    down = steps["foot_force_n"] > 0
+    steps["joint_angle_rad"] = bent_knees(down, stance_deg=(0.0, 10.0), swing_deg=(60.0, 60.0))
+    clean = episode_metrics(steps, spec(joint_limits_rad=KNEE_LIMITS))
+    flicker = down.copy()
+    flicker[85, 0] = False  # the right foot's stance of rows 80-102 lifts for a row
+    flicker[106, 0] = True  # its swing of rows 103-119 touches down for a row
+    steps["foot_force_n"] = np.where(flicker, 300.0, 0.0)
+    m = episode_metrics(steps, spec(joint_limits_rad=KNEE_LIMITS))
+    assert m["knee_midstance_deg"] == pytest.approx(clean["knee_midstance_deg"], abs=1e-9)
+    assert m["knee_swing_peak_deg"] == pytest.approx(clean["knee_swing_peak_deg"], abs=1e-9)
+
+
+def test_no_complete_phase_gives_nan():
+    lifted = still(100, foot_force_n=np.tile([300.0, 0.0], (100, 1)))  # one foot up the whole episode
+    for steps in (still(100), lifted):
+        m = episode_metrics(steps, spec(joint_limits_rad=KNEE_LIMITS))
+        assert math.isnan(m["knee_midstance_deg"]) and math.isnan(m["knee_swing_peak_deg"])
+    assert episode_metrics(lifted, spec())["flight_share"] == 0.0

@@ -39,7 +39,7 @@ import pytest
 
 from pamrun.config import Perturbation, to_object
 from pamrun.evaluation.agents import load_agents
-from pamrun.evaluation.episodes import aggregate, evaluate_agents
+from pamrun.evaluation.episodes import aggregate, evaluate_agents, make_policy, run_episode
 from tests.conftest import compose_config, run_pamrun
 
 AGENT = Path(__file__).parents[1] / "agents" / "walker_td3_seed0.pt"
@@ -86,3 +86,20 @@ def test_the_shipped_agent_walks_and_renders(tmp_path):
     assert (out / "best_episode.mp4").stat().st_size > 50_000 and (out / "gait.png").stat().st_size > 0
     assert all(np.isfinite(np.asarray(e["steps"]["pressure_kpa"])).all() for e in episodes)
     assert f"{row['walk_passes']}/50" in proc.stdout
+
+
+def test_a_short_walk_has_finite_support_shares_and_knee_angles():
+    """A 3 s episode of the walker: its double support and flight shares and its knee at mid-stance
+    and peak in swing (pamrun.evaluation.metrics) are defined and physically possible."""
+    cfg = to_object(compose_config("eval.episode_s=3.0", "eval.walk_duration_s=3.0"))
+    agents, envs, errors = load_agents(str(AGENT), cfg)
+    assert not errors
+    env = envs[0].make()
+    try:
+        ep = run_episode(make_policy(agents[0]), env, seed=SEED, keep_steps=False)
+    finally:
+        env.close()
+    both, flight = ep["double_support_share"], ep["flight_share"]
+    assert 0.0 <= both <= 1.0 and 0.0 <= flight <= 1.0 and both + flight <= 1.0
+    assert 0.0 <= ep["knee_midstance_deg"] < ep["knee_swing_peak_deg"]
+    assert 20.0 < ep["knee_swing_peak_deg"] <= 95.0  # it bends its knees to step; the stop is at 90 deg (soft)

@@ -38,6 +38,10 @@ GAIT_SCALARS = {
     "pressure_change_kpa": "pressure_change_mean",
     "cost_of_transport": "cost_of_transport_mean",
     "air_nl_per_m": "air_nl_per_m_mean",
+    "double_support_share": "double_support_share_mean",
+    "flight_share": "flight_share_mean",
+    "knee_midstance_deg": "knee_midstance_deg_mean",
+    "knee_swing_peak_deg": "knee_swing_peak_deg_mean",
 }
 FIGURE_DPI = 60  # the gait figure at 960 x 384 pixels
 GIF_COLOURS = 128  # palette of each GIF frame (fast octree quantization)

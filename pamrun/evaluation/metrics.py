@@ -48,6 +48,24 @@ Definitions (the manual of :func:`episode_metrics`):
   the contact sphere lowest at the first of the two rows, followed to the second: a foot
   rolling over its heel or toe does not slip, and its ankle, which moves as it rolls, is not
   what touches the ground.
+* **double support share** and **flight share**: the share of the rows after the first
+  ``SETTLE_S`` (the start from standing, left out of these and the knee's metrics) in which both
+  feet are in contact, and in which neither is (a human walking at 1 m/s: about 20 % and 0; a
+  run: none and its flight).
+* **stance** and **swing** of a foot: a run of rows in contact, from a touchdown to the row
+  before the lift-off, and a run of rows off the ground, from the lift-off to the row before
+  the touchdown. Only complete phases count: not the one the episode starts or ends in. A run
+  shorter than ``MIN_PHASE_S`` (two control steps) is a flicker of the contact, not a phase: an
+  off-ground run that short between two in contact counts as contact, and then an in-contact
+  run that short between two off the ground as off.
+* **knee flexion**: how far a knee is bent from straight, its extension stop (its lower
+  limit), in degrees; 0 at the stop or past it.
+* **knee at mid-stance**: the knee's flexion at the middle of a stance (linear between rows when
+  the middle falls between two), averaged over the stances of both legs that begin after the
+  first ``SETTLE_S`` (a human's, walking: nearly straight, under 15 deg).
+* **knee swing peak**: the largest knee flexion in a swing, averaged over the swings of both
+  legs that begin after the first ``SETTLE_S`` (a human's, walking: about 60 deg; the first
+  step from standing swings lower).
 * **cost of transport** (mechanical): sum over rows and joints of |torque x velocity| x dt,
   divided by m g d with d = x_m[-1] - x_m[0], the torso's forward distance. Each row's power
   stands for the control step that ends at it, so the rows after the first are summed (the
@@ -99,8 +117,14 @@ GAIT_METRICS = (
     "cost_of_transport",
     "air_nl",
     "air_nl_per_m",
+    "double_support_share",
+    "flight_share",
+    "knee_midstance_deg",
+    "knee_swing_peak_deg",
 )
 HOP_WINDOW_S = 0.05  # two feet touching down this close together land as one (two control steps)
+SETTLE_S = 1.0  # the support shares and the knee's phases leave out the episode's first second
+MIN_PHASE_S = 0.05  # a stance or swing shorter than this (two control steps) is a flicker, not a phase
 
 
 @dataclass(frozen=True, eq=False)
@@ -250,6 +274,58 @@ def foot_slip_m_s(steps: dict, contact: np.ndarray) -> float:
     return float(speed[both].mean()) if both.any() else math.nan
 
 
+def support_shares(steps: dict, contact: np.ndarray) -> tuple[float, float]:
+    """Shares of the rows after the first ``SETTLE_S`` with both feet in contact and with neither
+    (NaN, NaN when the episode is no longer)."""
+    late = contact[np.asarray(steps["t_s"], float) > SETTLE_S + 1e-9]
+    if not len(late):
+        return math.nan, math.nan
+    return float(late.all(axis=1).mean()), float((~late.any(axis=1)).mean())
+
+
+def runs(column: np.ndarray) -> list[tuple[bool, int, int]]:
+    """The runs of equal values of a bool column, as (value, first row, end row), in row order."""
+    bounds = [0, *(np.flatnonzero(np.diff(column.astype(int))) + 1).tolist(), len(column)]
+    return [(bool(column[a]), a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+
+
+def phases(column: np.ndarray, min_rows: int) -> list[tuple[bool, int, int]]:
+    """A foot's complete stances (True) and swings (False) as (value, first row, end row): its
+    contact column's runs but the first and the last, after the runs shorter than ``min_rows``
+    between two others are given to them, off-ground runs first (module docstring)."""
+    column = np.asarray(column, bool).copy()
+    for value in (False, True):
+        for run_value, a, b in runs(column)[1:-1]:
+            if run_value == value and b - a < min_rows:
+                column[a:b] = not value
+    return runs(column)[1:-1]
+
+
+def knee_flexion_deg(joint_angle_rad, spec: GaitSpec) -> np.ndarray:
+    """(n, 2): each leg's knee flexion [deg] per row, right and left (0 at its stop or past it)."""
+    q = np.asarray(joint_angle_rad, float).reshape(-1, len(JOINTS))[:, KNEES]
+    return np.degrees(np.maximum(q - spec.joint_limits_rad[KNEES, 0], 0.0))
+
+
+def knee_phases_deg(steps: dict, contact: np.ndarray, spec: GaitSpec) -> tuple[float, float]:
+    """The knee's flexion [deg] at mid-stance and its peak in swing, each averaged over the complete
+    phases of both legs that begin after the first ``SETTLE_S`` (NaN without one)."""
+    flexion = knee_flexion_deg(steps["joint_angle_rad"], spec)
+    late = np.asarray(steps["t_s"], float) > SETTLE_S + 1e-9
+    min_rows = max(1, round(MIN_PHASE_S / spec.dt_s))
+    rows = np.arange(len(flexion))
+    mid, peak = [], []
+    for foot in (RIGHT, LEFT):
+        for down, a, b in phases(contact[: len(flexion), foot], min_rows):
+            if not late[a]:
+                continue
+            if down:
+                mid.append(float(np.interp(0.5 * (a + b - 1), rows, flexion[:, foot])))
+            else:
+                peak.append(float(flexion[a:b, foot].max()))
+    return _mean(mid), _mean(peak)
+
+
 def gait_cycle(values, starts, points: int = 101) -> tuple[np.ndarray, np.ndarray]:
     """Values over the gait cycle: each stride (row ``starts[k]`` to ``starts[k + 1]``)
     resampled linearly onto 0-100 % in ``points`` points.
@@ -305,6 +381,8 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
 
     out["swing_clearance_m"] = swing_clearance_m(steps, contact)
     out["foot_slip_m_s"] = foot_slip_m_s(steps, contact)
+    out["double_support_share"], out["flight_share"] = support_shares(steps, contact)
+    out["knee_midstance_deg"], out["knee_swing_peak_deg"] = knee_phases_deg(steps, contact, spec)
 
     distance = float(x[-1] - x[0])
     power = np.abs(np.asarray(steps["joint_torque_nm"], float) * np.asarray(steps["joint_velocity_rad_s"], float))

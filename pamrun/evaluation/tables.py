@@ -28,9 +28,11 @@ def leaderboard_table(ranked: list[dict], ecfg, limit: int = 20):
 def gait_table(ranked: list[dict], limit: int = 20):
     """The gait metrics' means (and spreads) per agent (pamrun.evaluation.metrics defines them)."""
     table = Table(title="Gait (means ± std over episodes; 'hops': touchdowns with both feet together; 'at a stop': "
-                        "the joint most often within 2° of a stop, knees only in swing)")
-    for col in ("#", "agent", "speed (m/s)", "steps/s", "stride (m)", "symmetry time/length", "hops", "duty",
-                "at a stop", "clearance (m)", "slip (m/s)", "CoT", "air (NL/m)"):
+                        "the joint most often within 2° of a stop, knees only in swing; 'both down / flight': shares "
+                        "of the time after the first second; knee: flexion at mid-stance / its peak in swing)")
+    for col in ("#", "agent", "speed (m/s)", "cadence (steps/s)", "stride (m)", "symmetry time/length", "hops", "duty",
+                "both down / flight", "knee stance / swing (°)", "at a stop", "clearance (m)", "slip (m/s)", "CoT",
+                "air (NL/m)"):
         table.add_column(col, justify="left" if col == "agent" else "right", no_wrap=col != "agent", overflow="fold")
 
     def pm(row: dict, name: str, fmt: str = ".2f") -> str:
@@ -40,7 +42,10 @@ def gait_table(ranked: list[dict], limit: int = 20):
         table.add_row(str(row["rank"]), row["agent"], pm(row, "speed"), pm(row, "step_frequency_hz"),
                       pm(row, "stride_length_m"),
                       f"{row['step_time_symmetry_mean']:.2f} / {row['step_length_symmetry_mean']:.2f}",
-                      f"{row['hop_share_mean']:.0%}", f"{row['duty_factor_mean']:.2f}", f"{row['stop_share_gait_max_mean']:.0%}",
+                      f"{row['hop_share_mean']:.0%}", f"{row['duty_factor_mean']:.2f}",
+                      f"{row['double_support_share_mean']:.0%} / {row['flight_share_mean']:.0%}",
+                      f"{row['knee_midstance_deg_mean']:.0f} / {row['knee_swing_peak_deg_mean']:.0f}",
+                      f"{row['stop_share_gait_max_mean']:.0%}",
                       pm(row, "swing_clearance_m", ".3f"), pm(row, "foot_slip_m_s"),
                       pm(row, "cost_of_transport"), pm(row, "air_nl_per_m", ".1f"))
     return table
