@@ -251,24 +251,30 @@ def test_git_commit_says_when_the_code_is_not_the_commit(tmp_path):
 
 
 @pytest.mark.parametrize("missing", [1, 0])
-def test_a_buffer_from_an_earlier_reward_is_named_not_trained_on(tmp_path, missing):
-    """A replay buffer written when pamrun had fewer reward terms (reward.kstep came later) fails
-    on resume naming its folder; one with every term loads."""
+def test_a_buffer_from_an_earlier_reward_is_named_or_completed(tmp_path, missing):
+    """A replay buffer that stored the terms as one array of the wrong width fails on resume naming
+    its folder; one of the array format's width loads, by name, with the terms added to pamrun
+    since stored as 0 (the run's own config never weights them)."""
     from tensordict import TensorDict
     from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
-    from pamrun.learning.checkpoints import CheckpointError, check_reward_terms
+    from pamrun.learning.checkpoints import ARRAY_TERMS, CheckpointError, check_reward_terms
     from pamrun.learning.curriculum import FEATURES
     from pamrun.task.reward import REWARD_KEYS
 
-    width = len(REWARD_KEYS) - missing
+    width = len(ARRAY_TERMS) - missing
     saved = TensorDictReplayBuffer(storage=LazyTensorStorage(10))
-    saved.extend(TensorDict({"next": {FEATURES: torch.zeros(4, width, dtype=torch.float64)}}, batch_size=[4]))
+    columns = torch.arange(1, width + 1, dtype=torch.float64).expand(4, width)
+    saved.extend(TensorDict({"next": {FEATURES: columns}}, batch_size=[4]))
     saved.dumps(tmp_path / "buffer")
     loaded = TensorDictReplayBuffer(storage=LazyTensorStorage(10))
     loaded.loads(tmp_path / "buffer")
     if missing:
-        with pytest.raises(CheckpointError, match=f"buffer.*stores {width} reward terms.*has {len(REWARD_KEYS)}"):
+        with pytest.raises(CheckpointError, match=f"buffer.*stores {width} reward terms.*{len(ARRAY_TERMS)}"):
             check_reward_terms(loaded, tmp_path / "buffer")
-    else:
-        check_reward_terms(loaded, tmp_path / "buffer")
+        return
+    check_reward_terms(loaded, tmp_path / "buffer")
+    stored = loaded.storage._storage["next", FEATURES]
+    assert set(stored.keys()) == set(REWARD_KEYS)
+    assert [stored[k][0].item() for k in ARRAY_TERMS] == list(range(1, width + 1))
+    assert all(stored[k][:4].eq(0).all() for k in REWARD_KEYS if k not in ARRAY_TERMS)
