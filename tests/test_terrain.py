@@ -128,3 +128,22 @@ def test_the_shipped_walker_meets_the_terrain_through_pamrun_eval(tmp_path):
                                                                      "uneven"])
     assert all(e["distance_m"] > 1.2 for e in episodes)  # past terrain_x_m: on the terrain
     assert "slope 3 deg up" in proc.stdout
+
+
+def test_the_height_reward_and_randomisation_know_the_terrain():
+    """reward.kz measures the torso's height from the ground under it; domain randomisation draws
+    one terrain at a time."""
+    from pamrun.task.randomize import RandomizedWalker
+    from pamrun.task.spec import EnvSpec
+
+    cfg = EnvConfig(slope_deg=-10.0)
+    env = PamWalkerEnv(env=cfg)
+    _stand_at(env, 5.0, ground_height_m(cfg, 5.0))
+    *_, info = env.step(np.zeros(env.action_space.shape, np.float32))
+    assert env.data.qpos[2] < env.z0 - 0.5 and info["reward_unweighted"]["kz"] > -1e-3  # 0.7 m lower, on its feet
+    ecfg = to_object(compose_config()).eval
+    names = ["slope_up", "uneven", "step_up"]
+    walker = RandomizedWalker(EnvSpec(), {n: ecfg.perturbations[n] for n in names}, 1.0, 1.0, 2)
+    for seed in range(6):
+        walker.reset(seed=seed)
+        assert len(walker.drawn) == 1

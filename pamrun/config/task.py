@@ -10,6 +10,8 @@ from pamrun.config.checks import _non_negative, _positive, _require
 # The config sections that make an agent's env, its robot (body, muscle) and its task (reward,
 # env): what an agent file stores (pamrun.task.spec.EnvSpec) and what a perturbation may change.
 ENV_SECTIONS = ("body", "muscle", "reward", "env")
+# The terrain's keys (pamrun.physics.terrain): at most one of them set at a time.
+TERRAIN_KEYS = frozenset({"env.slope_deg", "env.step_height_m", "env.rough_height_m"})
 # --------------------------------------------------------------------------- task
 
 

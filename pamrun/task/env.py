@@ -410,8 +410,12 @@ class PamWalkerEnv(gym.Env):
         ``torso``; on terrain, its height above the ground under it (:func:`pamrun.physics.terrain.ground_height_m`)."""
         torso = self._state()[2] if torso is None else torso
         if self.on_terrain:
-            torso = [*torso[:2], torso[2] - ground_height_m(self.env_cfg, torso[0]), *torso[3:]]
+            torso = [*torso[:2], torso[2] - self.ground_height_m(torso[0]), *torso[3:]]
         return fell_rule(torso, self.z0, self.env_cfg)
+
+    def ground_height_m(self, x: float) -> float:
+        """The ground's height [m] at ``x`` along the path (:func:`pamrun.physics.terrain.ground_height_m`)."""
+        return ground_height_m(self.env_cfg, x)
 
     def _info(self, physics_error: bool, foot_force_n: list[float], fell: bool, torso: list[float]) -> dict[str, Any]:
         """info without the reward's dicts (and ``air_nl``); numpy scalars: TorchRL's info readers need .dtype."""
