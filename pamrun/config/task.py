@@ -11,6 +11,8 @@ from pamrun.config.checks import _non_negative, _positive, _require
 # The config sections that make an agent's env, its robot (body, muscle) and its task (reward,
 # env): what an agent file stores (pamrun.task.spec.EnvSpec) and what a perturbation may change.
 ENV_SECTIONS = ("body", "muscle", "reward", "env")
+# The terrain's keys (pamrun.physics.terrain): at most one of them set at a time.
+TERRAIN_KEYS = frozenset({"env.slope_deg", "env.step_height_m", "env.rough_height_m"})
 # --------------------------------------------------------------------------- task
 
 
@@ -108,6 +110,12 @@ class EnvConfig:
     push_impulse_ns: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])  # impulse on the torso, world x, y, z [N s]
     push_time_s: float = 5.0  # when the push starts [s from reset]
     push_duration_s: float = 0.1  # how long it lasts [s], rounded to whole control steps (at least one)
+    # Terrain (pamrun.physics.terrain; at most one of the three; all 0 = the flat floor): the robot
+    # starts on flat ground and the terrain begins terrain_x_m ahead, across the path.
+    slope_deg: float = 0.0  # a slope [deg], + uphill in the walking direction (+x); |slope| <= 15
+    step_height_m: float = 0.0  # a step across the path [m], + up, - down; |height| <= 0.1
+    rough_height_m: float = 0.0  # uneven ground, each point within +-this [m] (a heightfield, fixed per model); <= 0.05
+    terrain_x_m: float = 1.0  # where the terrain begins [m ahead of the start]; >= 0.3, clear of the feet
 
     def __post_init__(self) -> None:
         _positive(self, "control_dt_s", "episode_s", "physics_dt_s", "max_lateral_m", "max_tilt_rad", "speed_sigma_m_s",
@@ -139,6 +147,7 @@ class EnvConfig:
             _require(self.push_time_s + self.push_duration_s <= self.episode_s + 1e-9, "push_time_s",
                      f"the push ({self.push_time_s} s + {self.push_duration_s} s) must end within the episode "
                      f"({self.episode_s} s)")
+        self._check_terrain()
         _require(0 < self.fall_height_ratio < 1, "fall_height_ratio", "must lie in (0, 1)")
         _positive(self, "muscle_dt_s")
         for key, big, small in (
@@ -153,6 +162,18 @@ class EnvConfig:
                 f"of times, got {small}",
             )
         _require(self.episode_s >= self.control_dt_s, "episode_s", "must be >= control_dt_s")
+
+    def _check_terrain(self) -> None:
+        for name, limit in (("slope_deg", 15.0), ("step_height_m", 0.1)):
+            value = getattr(self, name)
+            _require(math.isfinite(value) and abs(value) <= limit, name, f"must lie in [-{limit}, {limit}], got {value}")
+        _require(math.isfinite(self.rough_height_m) and 0 <= self.rough_height_m <= 0.05, "rough_height_m",
+                 f"must lie in [0, 0.05] m, got {self.rough_height_m}")
+        _require(math.isfinite(self.terrain_x_m) and self.terrain_x_m >= 0.3, "terrain_x_m",
+                 f"must be >= 0.3 m (the feet stand within it), got {self.terrain_x_m}")
+        chosen = [name for name in ("slope_deg", "step_height_m", "rough_height_m") if getattr(self, name)]
+        _require(len(chosen) <= 1, chosen[-1] if chosen else "slope_deg",
+                 f"one terrain at a time, got {' and '.join(chosen)}")
 
     def _check_speed_changes(self) -> None:
         """The speed schedule and the drawn speed changes (each failure names its key)."""

@@ -56,13 +56,14 @@ import math
 import mujoco  # its GL backend is chosen by pamrun.physics (MUJOCO_GL), imported first
 import numpy as np
 
-from pamrun.config import LEG_JOINTS, BodyConfig  # LEG_JOINTS: one leg's hinges, their one home
+from pamrun.config import LEG_JOINTS, BodyConfig, EnvConfig  # LEG_JOINTS: one leg's hinges, their one home
 from pamrun.config.robot import (
     FOOT_HEIGHT_RATIO,
     FOOT_LENGTH_RATIO,
     FOOT_MASS_RATIO,
     FOOT_WIDTH_RATIO,
 )
+from pamrun.physics.terrain import add_terrain
 
 SIDES = ("right", "left")
 JOINTS = tuple(f"{side}_{joint}" for side in SIDES for joint in LEG_JOINTS)  # every hinge, right leg first
@@ -336,8 +337,10 @@ def _add_camera(torso: mujoco.MjsBody, cfg: BodyConfig) -> None:
                      xyaxes=[*right, *up], fovy=45)
 
 
-def build_spec(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = False) -> mujoco.MjSpec:
-    """The robot as an MjSpec (no XML by hand). ``fixed_torso`` welds the torso in the air."""
+def build_spec(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = False,
+               env: EnvConfig | None = None) -> mujoco.MjSpec:
+    """The robot as an MjSpec (no XML by hand). ``fixed_torso`` welds the torso in the air;
+    ``env``'s terrain, if any, lies ahead (:mod:`pamrun.physics.terrain`)."""
     pelvis = anthropometry(cfg)["pelvis"]
     spec = mujoco.MjSpec()
     spec.modelname = "pamwalker"
@@ -348,6 +351,8 @@ def build_spec(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = F
     spec.visual.global_.offheight = 960
 
     _add_scene(spec, cfg)
+    if env is not None:
+        add_terrain(spec, env, [cfg.friction_static, 0.005, 0.0001])
 
     z_torso = standing_height_m(cfg) + (FIXED_TORSO_LIFT_M if fixed_torso else 0.0)
     # ipos must be given: MjSpec's default (NaN) leaves the compiler to place the centre of
@@ -416,9 +421,11 @@ def match_contact_overlap(model: mujoco.MjModel, cfg: BodyConfig) -> float:
     return float(scale)
 
 
-def build_model(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = False) -> mujoco.MjModel:
-    """Compiled model whose foot contacts sink by the designed overlap (:func:`match_contact_overlap`)."""
-    model = build_spec(cfg, timestep_s, fixed_torso).compile()
+def build_model(cfg: BodyConfig, timestep_s: float = 0.005, fixed_torso: bool = False,
+                env: EnvConfig | None = None) -> mujoco.MjModel:
+    """Compiled model whose foot contacts sink by the designed overlap (:func:`match_contact_overlap`),
+    with ``env``'s terrain, if any (:func:`build_spec`)."""
+    model = build_spec(cfg, timestep_s, fixed_torso, env).compile()
     match_contact_overlap(model, cfg)
     return model
 

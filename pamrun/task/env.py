@@ -94,6 +94,7 @@ from pamrun.config.robot import MUSCLE_INNER_DIAMETER_M
 from pamrun.physics import body as body_mod
 from pamrun.physics.actuation import MuscleDrive, joint_limits_rad, muscle_counts
 from pamrun.physics.muscle import AirMeter
+from pamrun.physics.terrain import ground_height_m, has_terrain
 from pamrun.task import clock
 from pamrun.task.camera import Camera
 from pamrun.task.clock import gait_at_speed
@@ -197,7 +198,8 @@ class PamWalkerEnv(gym.Env):
 
     def _build_physics(self, cfg: EnvConfig) -> None:
         """The MuJoCo model and data, the views of its arrays read every step, and the step counts."""
-        self.model = body_mod.build_model(self.body_cfg, timestep_s=cfg.physics_dt_s)
+        self.model = body_mod.build_model(self.body_cfg, timestep_s=cfg.physics_dt_s, env=cfg)
+        self.on_terrain = has_terrain(cfg)  # the fall check measures the torso's height from the ground
         self.data = d = mujoco.MjData(self.model)
         # views read every step (MjData's memory never moves)
         self._qpos, self._qvel, self._sensordata, self._geom_xpos = d.qpos, d.qvel, d.sensordata, d.geom_xpos
@@ -445,8 +447,16 @@ class PamWalkerEnv(gym.Env):
         return error, [right, left], soles, self._torso_values.tolist(), obs
 
     def _fell(self, torso: list[float] | None = None) -> bool:
-        """Whether the robot has fallen (:func:`pamrun.task.criteria.fell`) with the torso's 12 values ``torso``."""
-        return fell_rule(self._state()[2] if torso is None else torso, self.z0, self.env_cfg)
+        """Whether the robot has fallen (:func:`pamrun.task.criteria.fell`) with the torso's 12 values
+        ``torso``; on terrain, its height above the ground under it (:func:`pamrun.physics.terrain.ground_height_m`)."""
+        torso = self._state()[2] if torso is None else torso
+        if self.on_terrain:
+            torso = [*torso[:2], torso[2] - self.ground_height_m(torso[0]), *torso[3:]]
+        return fell_rule(torso, self.z0, self.env_cfg)
+
+    def ground_height_m(self, x: float) -> float:
+        """The ground's height [m] at ``x`` along the path (:func:`pamrun.physics.terrain.ground_height_m`)."""
+        return ground_height_m(self.env_cfg, x)
 
     def _info(self, physics_error: bool, foot_force_n: list[float], fell: bool, torso: list[float]) -> dict[str, Any]:
         """info without the reward's dicts (and ``air_nl``); numpy scalars: TorchRL's info readers need .dtype."""

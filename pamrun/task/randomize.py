@@ -28,6 +28,7 @@ import gymnasium as gym
 import numpy as np
 
 from pamrun.config import Config, ConfigError, flatten
+from pamrun.config.task import TERRAIN_KEYS
 from pamrun.task.env import PamWalkerEnv
 from pamrun.task.spec import EnvSpec
 
@@ -71,6 +72,7 @@ class RandomizedWalker(gym.Env):
         for k in order.tolist():
             name = self.names[k]
             sets = set(flatten(self.perturbations[name].values))
+            sets |= TERRAIN_KEYS if sets & TERRAIN_KEYS else set()  # one terrain at a time (env.slope_deg's check)
             if len(self.drawn) == self.count or sets & taken:
                 continue
             strength = float(rng.uniform(0.0, self.reach[name]))

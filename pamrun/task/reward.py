@@ -69,7 +69,9 @@ def lateral(t: Transition) -> float:
 
 @term("kz")
 def height(t: Transition) -> float:
-    return -((t.torso[2] - t.env.z0) ** 2)
+    """On terrain, the height above the ground under the torso (pamrun.physics.terrain.ground_height_m)."""
+    z = t.torso[2] - t.env.ground_height_m(t.torso[0]) if t.env.on_terrain else t.torso[2]
+    return -((z - t.env.z0) ** 2)
 
 
 @term("kv")
