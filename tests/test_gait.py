@@ -437,6 +437,26 @@ def test_a_contact_flicker_of_one_row_is_no_phase():
     assert m["knee_swing_peak_deg"] == pytest.approx(clean["knee_swing_peak_deg"], abs=1e-9)
 
 
+def test_a_foot_that_bounces_as_it_lands_takes_one_step():
+    """The right foot lands, lifts for one row and lands again at each of its touchdowns (and
+    one stance lifts for a row mid-way): the steps, their cadence and lengths, the strides and
+    the hops are the clean motion's (9 steps at 2 steps/s). Counted row by row the bounces would
+    be 13 more steps at over 3 steps/s; the duty, read row by row, does see the rows off."""
+    steps = walk(200, 40, 20, 24, 0.4, 0.4)
+    clean = episode_metrics(steps, spec())
+    down = steps["foot_force_n"] > 0
+    for row in (41, 81, 121, 161, 90):
+        down[row, 0] = False
+    steps["foot_force_n"] = np.where(down, 300.0, 0.0)
+    m = episode_metrics(steps, spec())
+    assert m["step_count"] == clean["step_count"] == 9
+    for key in ("step_frequency_hz", "step_length_m", "stride_length_m", "step_time_symmetry",
+                "step_length_symmetry", "hop_share"):
+        assert m[key] == pytest.approx(clean[key], abs=1e-9), key
+    assert m["step_frequency_hz"] == pytest.approx(2.0, abs=1e-9)
+    assert m["duty_factor"] == pytest.approx(clean["duty_factor"] - 5 / 400, abs=1e-12)
+
+
 def test_no_complete_phase_gives_nan():
     lifted = still(100, foot_force_n=np.tile([300.0, 0.0], (100, 1)))  # one foot up the whole episode
     for steps in (still(100), lifted):

@@ -147,3 +147,24 @@ def test_the_height_reward_and_randomisation_know_the_terrain():
     for seed in range(6):
         walker.reset(seed=seed)
         assert len(walker.drawn) == 1
+
+
+def test_the_gait_clock_measures_a_swinging_foots_lift_from_the_ground_under_it():
+    """The robot standing on a 10 cm step scores the gait clock's swing clearance as it does on
+    the floor: its feet, on the ground, have not lifted (counted from z = 0 they would have
+    cleared 10 cm, and a foot the clock swings would miss 0.25 less)."""
+    from pamrun.task import clock
+
+    scores = {}
+    for name, terrain in (("floor", {}), ("step", {"step_height_m": 0.1})):
+        cfg = EnvConfig(gait_period_s=0.8, swing_clearance_m=0.05, **terrain)
+        env = PamWalkerEnv(env=cfg, features=["kgait"])
+        _stand_at(env, 2.5, ground_height_m(cfg, 2.5))
+        scores[name], swinging = [], []
+        for _ in range(12):
+            swinging.append(max(clock.swing_weights(env.gait_phase(), cfg.swing_share)))
+            *_, info = env.step(np.zeros(env.action_space.shape, np.float32))
+            scores[name].append(info["reward_unweighted"]["kgait"])
+        env.close()
+    assert max(swinging) > 0.9  # a foot the clock swings, standing on the ground
+    assert np.allclose(scores["step"], scores["floor"], atol=0.02), (scores["step"], scores["floor"])

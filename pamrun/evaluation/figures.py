@@ -18,7 +18,7 @@ matplotlib.use("Agg")  # files only, no display: set before pyplot loads
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from pamrun.evaluation.metrics import contacts, gait_cycle, touchdowns  # noqa: E402
+from pamrun.evaluation.metrics import contacts, gait_cycle, steady, touchdowns  # noqa: E402
 from pamrun.physics.body import LEG_JOINTS, SIDES  # noqa: E402
 
 
@@ -201,7 +201,9 @@ def _strides(episodes: list[dict], contact_threshold_n: float) -> tuple[np.ndarr
         if not len(s["t_s"]):
             continue
         angle = np.rad2deg(np.asarray(s["joint_angle_rad"], float)).reshape(len(s["t_s"]), len(SIDES), -1)
-        for foot, (side, rows) in enumerate(zip(SIDES, touchdowns(contacts(s, contact_threshold_n)))):
+        t = np.asarray(s["t_s"], float)
+        dt = float(np.median(np.diff(t))) if len(t) > 1 else float(t[0])
+        for foot, (side, rows) in enumerate(zip(SIDES, touchdowns(steady(contacts(s, contact_threshold_n), dt)))):
             grid, cycles = gait_cycle(angle[:, foot], rows)
             strides[side].append(cycles)
     return grid, strides

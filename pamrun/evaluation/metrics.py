@@ -11,9 +11,15 @@ Definitions (the manual of :func:`episode_metrics`):
 
 * **contact**: a foot is in contact in a row when its normal force exceeds
   ``GaitSpec.contact_threshold_n``.
-* **touchdown**: a row where a foot is in contact and was not in the row before (a rising
-  edge; a foot already down in the first row has not touched down). Every touchdown is a
-  **step** of that foot.
+* **steady contact**: the contact with its flickers merged: a run of rows off the ground
+  shorter than ``MIN_PHASE_S`` (two control steps) between two in contact counts as contact,
+  and then a run in contact that short between two off the ground as off. A foot that
+  bounces for one control step as it lands has landed once. The step events below, the
+  swing clearance and the knee's phases read steady contact; the shares of rows (duty,
+  double support, flight, slip, stops in swing) read the contact row by row.
+* **touchdown**: a row where a foot is in steady contact and was not in the row before (a
+  rising edge; a foot already down in the first row has not touched down). Every touchdown
+  is a **step** of that foot.
 * **step length**: forward (x) distance from the other foot's sole centre to the sole centre
   of the foot touching down, at the touchdown (negative for a step backwards).
 * **step time**: time from the other foot's previous touchdown to this one (undefined for a
@@ -54,10 +60,8 @@ Definitions (the manual of :func:`episode_metrics`):
   run: none and its flight).
 * **stance** and **swing** of a foot: a run of rows in contact, from a touchdown to the row
   before the lift-off, and a run of rows off the ground, from the lift-off to the row before
-  the touchdown. Only complete phases count: not the one the episode starts or ends in. A run
-  shorter than ``MIN_PHASE_S`` (two control steps) is a flicker of the contact, not a phase: an
-  off-ground run that short between two in contact counts as contact, and then an in-contact
-  run that short between two off the ground as off.
+  the touchdown, in steady contact. Only complete phases count: not the one the episode starts
+  or ends in.
 * **knee flexion**: how far a knee is bent from straight, its extension stop (its lower
   limit), in degrees; 0 at the stop or past it.
 * **knee at mid-stance**: the knee's flexion at the middle of a stance (linear between rows when
@@ -283,22 +287,30 @@ def support_shares(steps: dict, contact: np.ndarray) -> tuple[float, float]:
     return float(late.all(axis=1).mean()), float((~late.any(axis=1)).mean())
 
 
+def steady(contact: np.ndarray, dt_s: float) -> np.ndarray:
+    """(n, 2) steady contact: ``contact`` with each foot's flickers shorter than ``MIN_PHASE_S``
+    merged into the runs around them, off-ground runs first (module docstring)."""
+    min_rows = max(1, round(MIN_PHASE_S / dt_s))
+    out = np.asarray(contact, bool).copy()
+    for foot in range(out.shape[1]):
+        column = out[:, foot]
+        for value in (False, True):
+            for run_value, a, b in runs(column)[1:-1]:
+                if run_value == value and b - a < min_rows:
+                    column[a:b] = not value
+    return out
+
+
 def runs(column: np.ndarray) -> list[tuple[bool, int, int]]:
     """The runs of equal values of a bool column, as (value, first row, end row), in row order."""
     bounds = [0, *(np.flatnonzero(np.diff(column.astype(int))) + 1).tolist(), len(column)]
     return [(bool(column[a]), a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
 
 
-def phases(column: np.ndarray, min_rows: int) -> list[tuple[bool, int, int]]:
+def phases(column: np.ndarray) -> list[tuple[bool, int, int]]:
     """A foot's complete stances (True) and swings (False) as (value, first row, end row): its
-    contact column's runs but the first and the last, after the runs shorter than ``min_rows``
-    between two others are given to them, off-ground runs first (module docstring)."""
-    column = np.asarray(column, bool).copy()
-    for value in (False, True):
-        for run_value, a, b in runs(column)[1:-1]:
-            if run_value == value and b - a < min_rows:
-                column[a:b] = not value
-    return runs(column)[1:-1]
+    steady contact column's runs but the first and the last."""
+    return runs(np.asarray(column, bool))[1:-1]
 
 
 def knee_flexion_deg(joint_angle_rad, spec: GaitSpec) -> np.ndarray:
@@ -309,14 +321,13 @@ def knee_flexion_deg(joint_angle_rad, spec: GaitSpec) -> np.ndarray:
 
 def knee_phases_deg(steps: dict, contact: np.ndarray, spec: GaitSpec) -> tuple[float, float]:
     """The knee's flexion [deg] at mid-stance and its peak in swing, each averaged over the complete
-    phases of both legs that begin after the first ``SETTLE_S`` (NaN without one)."""
+    phases of both legs that begin after the first ``SETTLE_S`` (NaN without one); ``contact``: steady."""
     flexion = knee_flexion_deg(steps["joint_angle_rad"], spec)
     late = np.asarray(steps["t_s"], float) > SETTLE_S + 1e-9
-    min_rows = max(1, round(MIN_PHASE_S / spec.dt_s))
     rows = np.arange(len(flexion))
     mid, peak = [], []
     for foot in (RIGHT, LEFT):
-        for down, a, b in phases(contact[: len(flexion), foot], min_rows):
+        for down, a, b in phases(contact[: len(flexion), foot]):
             if not late[a]:
                 continue
             if down:
@@ -353,8 +364,9 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
     if n == 0:
         return out
     contact = contacts(steps, spec)
+    events = steady(contact, spec.dt_s)  # for steps and phases; the row shares read contact
 
-    table = step_table(steps, contact)
+    table = step_table(steps, events)
     out["step_count"] = float(len(table))
     if len(table) >= 2:
         t = np.asarray(steps["t_s"], float)
@@ -364,11 +376,11 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
         out["step_length_m"] = _mean([length for _, _, length, _ in table])
     per_foot = {foot: [s for s in table if s[1] == foot] for foot in (RIGHT, LEFT)}
     feet_x = sole_points(steps)[..., 0].mean(axis=2)
-    out["stride_length_m"] = _mean([d for foot, rows in enumerate(touchdowns(contact))
+    out["stride_length_m"] = _mean([d for foot, rows in enumerate(touchdowns(events))
                                     for d in np.diff(feet_x[rows, foot])])
     out["step_time_symmetry"] = symmetry_index(*(_mean([s[3] for s in per_foot[f]]) for f in (RIGHT, LEFT)))
     out["step_length_symmetry"] = symmetry_index(*(_mean([s[2] for s in per_foot[f]]) for f in (RIGHT, LEFT)))
-    out["hop_share"] = hop_share(steps, contact)
+    out["hop_share"] = hop_share(steps, events)
     out["duty_factor"] = float(contact.mean())
 
     shares = stop_shares(steps["joint_angle_rad"], spec)
@@ -379,10 +391,10 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
     out["stop_share_gait_max"] = float(np.nanmax([*(sh for j, sh in zip(JOINTS, shares) if "knee" not in j),
                                                   out["knee_swing_stop_share"]]))
 
-    out["swing_clearance_m"] = swing_clearance_m(steps, contact)
+    out["swing_clearance_m"] = swing_clearance_m(steps, events)
     out["foot_slip_m_s"] = foot_slip_m_s(steps, contact)
     out["double_support_share"], out["flight_share"] = support_shares(steps, contact)
-    out["knee_midstance_deg"], out["knee_swing_peak_deg"] = knee_phases_deg(steps, contact, spec)
+    out["knee_midstance_deg"], out["knee_swing_peak_deg"] = knee_phases_deg(steps, events, spec)
 
     distance = float(x[-1] - x[0])
     power = np.abs(np.asarray(steps["joint_torque_nm"], float) * np.asarray(steps["joint_velocity_rad_s"], float))

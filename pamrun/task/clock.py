@@ -44,13 +44,16 @@ def foot_miss(swing: float, share: float, speed_m_s: float, lift_m: float, knee_
 
 
 def followed(phase: float, soles_before: np.ndarray, soles: np.ndarray, shares: list[float], knees: list[float],
-             sole_radius_m: float, env: EnvConfig, stopped: bool = False) -> float:
+             sole_radius_m: float, env: EnvConfig, stopped: bool = False,
+             ground_m: list[float] | None = None) -> float:
     """1 - (1/2) sum_feet miss over one control step (``reward.kgait``'s feature): the feet's
     contact points (2, k, 3) before and after it, their ground forces as shares of the weight
     and the legs' knee flexions after it (``stopped``: the clock stands still, both feet asked
-    down)."""
+    down; ``ground_m``: the ground's height under each foot, on terrain; None: the floor, 0)."""
     moved = (soles[:, :, :2].mean(axis=1) - soles_before[:, :, :2].mean(axis=1)).tolist()
     lifts = (soles[:, :, 2].min(axis=1) - sole_radius_m).tolist()
+    if ground_m is not None:
+        lifts = [lift - ground for lift, ground in zip(lifts, ground_m)]
     gait = 0.0
     for foot, swing in enumerate((0.0, 0.0) if stopped else swing_weights(phase, env.swing_share)):
         speed = math.hypot(*moved[foot]) / env.control_dt_s

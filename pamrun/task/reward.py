@@ -134,14 +134,16 @@ def step_miss(t: Transition) -> float:
 
 @term("kgait")
 def gait_clock(t: Transition) -> float:
-    """1 - the feet's miss of the gait clock (0 without a clock)."""
+    """1 - the feet's miss of the gait clock (0 without a clock); on terrain a swinging foot's lift
+    counts from the ground under it."""
     env = t.env
     if not env.gait_clock:
         return 0.0
     shares = [f / env.weight_n for f in t.forces_n]
     knees = [t.qpos[adr] for adr in env.knee_addresses]
+    ground = [env.ground_height_m(float(x)) for x in t.soles[:, :, 0].mean(axis=1)] if env.on_terrain else None
     return clock.followed(t.episode.phase(env.env_cfg), t.soles_before, t.soles, shares, knees, env.sole_radius_m,
-                          env.env_cfg, t.episode.clock_stopped)
+                          env.env_cfg, t.episode.clock_stopped, ground)
 
 
 @term("kflight")
