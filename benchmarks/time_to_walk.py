@@ -10,7 +10,9 @@ training: ``pamrun eval``'s walk test on 10 episodes with 0.01 rad start noise) 
 wall-clock time and the frames to two milestones:
 
 * **stand**: every evaluation episode lasts the full 10 s (``stand_rate`` = 1);
-* **walk**: the walk test passes (10 s, no fall, |y| <= 0.5 m, >= 7 m, in every episode).
+* **walk**: the walk test passes (10 s, no fall, |y| <= 0.5 m, >= 7 m, in every episode);
+* **gait**: the walk test passes and the episodes' means meet every one of the walk's targets
+  (``pamrun.evaluation.targets``: a walk, not a run; evals.csv's ``walk_targets_met``).
 
 The sized robot stands passively at zero command, so an untrained actor (whose outputs
 start near 0) passes *stand* at the first evaluation. The row therefore also gives
@@ -48,11 +50,14 @@ RESULTS = Path(__file__).parent / "results" / "time_to_walk.jsonl"
 # The held-out gait the row records beside the walk test (means over the 50 episodes)
 GAIT = ("speed_mean", "pressure_change_mean", "hop_share_mean", "step_time_symmetry_mean",
         "step_length_symmetry_mean", "stop_share_gait_max_mean", "knee_swing_stop_share_mean", "swing_clearance_m_mean",
-        "foot_slip_m_s_mean", "air_nl_per_m_mean")
+        "foot_slip_m_s_mean", "air_nl_per_m_mean", "step_frequency_hz_mean", "step_length_m_mean", "duty_factor_mean",
+        "double_support_share_mean", "flight_share_mean", "knee_midstance_deg_mean", "knee_swing_peak_deg_mean",
+        "cost_of_transport_mean", "walk_targets_met")
 
 
 def milestones(run: Path) -> dict:
     """Wall time and frames to stand and to walk, and the best evaluation, from a run's files."""
+    from pamrun.evaluation.targets import WALK_TARGETS
     from pamrun.runs.directory import RunFiles, read_evals, saved_config
     from pamrun.runs.files import read_json
     from pamrun.task.criteria import actor_learns_from, stands_learned
@@ -67,7 +72,9 @@ def milestones(run: Path) -> dict:
     out["actor_learns_from_frames"] = learning
     for name, reached in (("stand", lambda r: float(r["stand_rate"]) >= 1.0),
                           ("stand_learned", lambda r: stands_learned(float(r["stand_rate"]), int(r["frames"]), cfg)),
-                          ("walk", lambda r: float(r["walk_pass_rate"]) >= 1.0)):
+                          ("walk", lambda r: float(r["walk_pass_rate"]) >= 1.0),
+                          ("gait", lambda r: float(r["walk_pass_rate"]) >= 1.0
+                           and int(r.get("walk_targets_met") or 0) == len(WALK_TARGETS))):
         first = next((r for r in rows if reached(r)), None)
         out[f"{name}_s"] = float(first["wall_time_s"]) if first else None
         out[f"{name}_frames"] = int(first["frames"]) if first else None
@@ -166,19 +173,22 @@ def main() -> None:
         print(f"wrote {figure(runs, args.figure)}")
         if args.no_record:
             return
+    from pamrun.evaluation.targets import WALK_TARGETS
+
     results = [milestones(r) for r in runs]
     stamp = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "device": args.device, "cpu_count": os.cpu_count(),
              "note": args.note}
-    print(f"{'run':<16} {'stand':>28} {'stand, learned':>28} {'walk':>28} {'best_eval.pt, held out':>36} "
-          f"{'frames':>8}")
+    print(f"{'run':<16} {'stand':>28} {'stand, learned':>28} {'walk':>28} {'gait targets':>28} "
+          f"{'best_eval.pt, held out':>48} {'frames':>8}")
     for r in results:
         h = r["held_out"]
         agent = "n/a" if h is None else (f"{h['walk_passes']}/{h['episodes']} ({100 * h['walk_pass_ci_low']:.0f}-"
-                                         f"{100 * h['walk_pass_ci_high']:.0f} %), {h['distance_mean']:.2f} m")
+                                         f"{100 * h['walk_pass_ci_high']:.0f} %), {h['distance_mean']:.2f} m, "
+                                         f"targets {h['walk_targets_met']}/{len(WALK_TARGETS)}")
         print(f"{Path(r['run']).name:<16} {fmt(r['stand_s'], r['stand_frames']):>28} "
               f"{fmt(r['stand_learned_s'], r['stand_learned_frames']):>28} {fmt(r['walk_s'], r['walk_frames']):>28} "
-              f"{agent:>36} {r['frames'] or 0:>8}")
-    for name in ("stand", "stand_learned", "walk"):
+              f"{fmt(r['gait_s'], r['gait_frames']):>28} {agent:>48} {r['frames'] or 0:>8}")
+    for name in ("stand", "stand_learned", "walk", "gait"):
         reached = [r[f"{name}_s"] for r in results if r[f"{name}_s"] is not None]
         median = f"{statistics.median(reached) / 60:.1f} min" if len(reached) == len(results) else "not every seed"
         print(f"{name}: reached by {len(reached)}/{len(results)} seeds; median {median}")

@@ -7,9 +7,11 @@ import math
 
 import numpy as np
 import pytest
+from rich.console import Console
 
-from pamrun.config import BodyConfig, MuscleConfig
+from pamrun.config import BodyConfig, EvalConfig, MuscleConfig
 from pamrun.evaluation import figures
+from pamrun.evaluation.episodes import aggregate
 from pamrun.evaluation.metrics import (
     GAIT_METRICS,
     GaitSpec,
@@ -18,6 +20,8 @@ from pamrun.evaluation.metrics import (
     gait_cycle,
     touchdowns,
 )
+from pamrun.evaluation.tables import targets_table
+from pamrun.evaluation.targets import WALK_TARGETS, met
 from pamrun.physics.body import JOINTS
 from pamrun.physics.muscle import air_nl, muscle_volume_l
 
@@ -463,3 +467,35 @@ def test_no_complete_phase_gives_nan():
         m = episode_metrics(steps, spec(joint_limits_rad=KNEE_LIMITS))
         assert math.isnan(m["knee_midstance_deg"]) and math.isnan(m["knee_swing_peak_deg"])
     assert episode_metrics(lifted, spec())["flight_share"] == 0.0
+
+
+# --------------------------------------------------------------------------- the walk's targets
+
+
+def _agent(steps: dict, **record) -> dict:
+    """The aggregate of 3 copies of one constructed episode, as pamrun eval ranks an agent."""
+    episode = {"fell": False, "duration_s": 10.0, "max_abs_y_m": 0.0, "distance_m": 8.0, "return": 0.0,
+               "speed_m_s": 0.8, "pressure_change_kpa": 20.0, **record, **episode_metrics(steps, spec(
+                   joint_limits_rad=KNEE_LIMITS))}
+    return {"agent": "constructed", **aggregate([episode] * 3, EvalConfig())}
+
+
+def test_a_constructed_human_walk_meets_every_walk_target_and_a_run_misses_its_own():
+    """A stride of 44 rows (1.1 s), each foot down 27 of them and landing 0.55 m ahead of the
+    other: duty 27/44 = 0.61, both feet down 2 x 5/44 = 23 %, 1.82 steps/s, the stance knee
+    straight and the swing knee at 60 deg meets all 13 targets. The running schedule (each foot
+    down 18 of 40 rows, 0.4 m steps) misses exactly flight, both feet down, duty and step length;
+    20 kPa more of pressure change per step misses that target too."""
+    walk_ = walk(400, 44, 22, 27, 0.55, 0.55)
+    walk_["joint_angle_rad"] = bent_knees(walk_["foot_force_n"] > 0, (0.0, 0.0), (60.0, 60.0))
+    agent = _agent(walk_)
+    assert agent["duty_factor_mean"] == pytest.approx(27 / 44, abs=0.01)
+    assert agent["walk_targets_met"] == len(WALK_TARGETS) == 13
+    run = walk(400, 40, 20, 18, 0.4, 0.4)
+    run["joint_angle_rad"] = bent_knees(run["foot_force_n"] > 0, (0.0, 0.0), (60.0, 60.0))
+    missed = {key for key in WALK_TARGETS if not met(key, _agent(run)[key])}
+    assert missed == {"flight_share_mean", "double_support_share_mean", "duty_factor_mean", "step_length_m_mean"}
+    assert _agent(walk_, pressure_change_kpa=40.0)["walk_targets_met"] == 12
+    console = Console(width=120, record=True)
+    console.print(targets_table(agent))
+    assert "13 of 13 met" in console.export_text() and "missed" not in console.export_text()

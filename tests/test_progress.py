@@ -35,7 +35,7 @@ def evaluation(stands: int, passes: int, n: int = 10) -> dict:
     """The fields of an evaluation's result (:func:`pamrun.evaluation.episodes.aggregate`) the progress shows."""
     low, high = wilson_interval(passes, n)
     return {"episodes": n, "stand_rate": stands / n, "walk_passes": passes, "walk_pass_rate": passes / n,
-            "walk_pass_ci_low": low, "walk_pass_ci_high": high}
+            "walk_pass_ci_low": low, "walk_pass_ci_high": high, "walk_targets_met": 4}
 
 
 def run_for(progress: TrainingProgress, clock: Clock, seconds: int, fps: int = 140, start: dict = START) -> dict:
@@ -84,7 +84,7 @@ def test_plain_lines_outside_a_terminal():
     assert len(out.getvalue().splitlines()) == 4
     progress.evaluated(evaluation(8, 3), counters)
     last = out.getvalue().splitlines()[-1]
-    assert last.startswith("frames 5180/200000 (2.6%)") and last.endswith("eval: stand 8/10 walk 3/10 (11-60 %)")
+    assert last.startswith("frames 5180/200000 (2.6%)") and last.endswith("eval: stand 8/10 walk 3/10 (11-60 %) targets 4/13")
     run_for(progress, clock, 3, start=counters)
     assert len(out.getvalue().splitlines()) == 5
     progress.stop()
@@ -146,7 +146,7 @@ def test_bar_on_a_terminal():
     progress.stop()
     text = re.sub(r"\x1b\[[0-9;?]*[a-zA-Z]", "", out.getvalue())  # without the terminal's control codes
     assert "━" in text and "frames 840/200000 (0.4%)" in text and "140 frames/s" in text
-    assert "eval: stand 10/10 walk 0/10 (0-28 %)" in text and "stage stand" in text
+    assert "eval: stand 10/10 walk 0/10 (0-28 %) targets 4/13" in text and "stage stand" in text
 
 
 @pytest.mark.parametrize("terminal", [False, True])

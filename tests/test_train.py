@@ -80,7 +80,7 @@ def test_threshold_not_reached_saves_nothing(tmp_path):
     assert re.fullmatch(r"frames 200/400 \(50\.0%\)  eta \S+  \d+ frames/s  \S+ updates/s  episodes \d+  avg .*",
                         lines[0])
     assert lines[-1].startswith("frames 400/400 (100.0%)  eta 0s") and re.search(
-        r"  eval: stand \d+/2 walk \d/2 \(\d+-\d+ %\)$", lines[-1])
+        r"  eval: stand \d+/2 walk \d/2 \(\d+-\d+ %\) targets \d+/13$", lines[-1])
 
 
 @pytest.mark.slow

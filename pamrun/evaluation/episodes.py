@@ -19,6 +19,7 @@ from typing import Any, Callable
 import numpy as np
 
 from pamrun.evaluation.metrics import GAIT_METRICS, GaitSpec, episode_metrics
+from pamrun.evaluation.targets import targets_met
 from pamrun.evaluation.tracking import TRACKING_METRICS, tracking_metrics
 from pamrun.learning.checkpoints import Agent
 from pamrun.physics.body import build_model
@@ -218,7 +219,8 @@ def aggregate(episodes: list[dict], ecfg) -> dict[str, Any]:
     """Mean and spread (population std) of an agent's episodes, its extremes, its walk test
     (pass count, rate and 95 % Wilson interval; ``walk_test``: every episode passed), its
     stand rate (the share of episodes that last the test's duration) and the gait metrics'
-    means and spreads over the episodes where they are defined (NaN where none is)."""
+    means and spreads over the episodes where they are defined (NaN where none is), and how many
+    of the walk's targets those means meet (``walk_targets_met``, :mod:`pamrun.evaluation.targets`)."""
     passed = [walk_passed(e, ecfg) for e in episodes]
     low, high = wilson_interval(sum(passed), len(passed))
     out: dict[str, Any] = {"episodes": len(episodes), "walk_test": all(passed), "walk_passes": int(sum(passed)),
@@ -238,4 +240,5 @@ def aggregate(episodes: list[dict], ecfg) -> dict[str, Any]:
         values = values[np.isfinite(values)]
         out[f"{name}_mean"] = float(values.mean()) if len(values) else float("nan")
         out[f"{name}_std"] = float(values.std()) if len(values) else float("nan")
+    out["walk_targets_met"] = targets_met(out)
     return out

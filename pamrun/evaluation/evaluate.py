@@ -49,7 +49,7 @@ from pamrun.evaluation.agents import run_all, start
 from pamrun.evaluation.ranking import warn_if_not_held_out
 from pamrun.evaluation.results import draw_figures, write_results
 from pamrun.evaluation.suite import run_suite
-from pamrun.evaluation.tables import gait_table, leaderboard_table
+from pamrun.evaluation.tables import gait_table, leaderboard_table, targets_table
 from pamrun.learning.checkpoints import CheckpointError, find_checkpoints, load_agent
 from pamrun.runs.files import run_dir
 from pamrun.task.spec import EnvSpec, eval_env_options
@@ -97,6 +97,7 @@ def run_evaluation(cfg, ckpt: str, out: Path) -> dict:
     written = draw_figures(out, cfg.eval, agents, envs, results, best, console)
     console.print(leaderboard_table(ranked, cfg.eval))
     console.print(gait_table(ranked))
+    console.print(targets_table(next(row for row in ranked if row["agent"] == best.label)))
     console.print(f"Best: [bold]{best.label}[/bold] -> {out / 'best.pt'}\n{selection['reason']}", soft_wrap=True)
     if errors:
         console.print(f"[red]{len(errors)} checkpoint(s) skipped[/red] (listed in leaderboard.json)")

@@ -6,6 +6,7 @@ from __future__ import annotations
 from rich.table import Table
 
 from pamrun.evaluation.ranking import pass_text
+from pamrun.evaluation.targets import WALK_TARGETS, bounds_text, met
 
 
 def leaderboard_table(ranked: list[dict], ecfg, limit: int = 20):
@@ -32,7 +33,7 @@ def gait_table(ranked: list[dict], limit: int = 20):
                         "of the time after the first second; knee: flexion at mid-stance / its peak in swing)")
     for col in ("#", "agent", "speed (m/s)", "cadence (steps/s)", "stride (m)", "symmetry time/length", "hops", "duty",
                 "both down / flight", "knee stance / swing (°)", "at a stop", "clearance (m)", "slip (m/s)", "CoT",
-                "air (NL/m)"):
+                "air (NL/m)", "walk targets"):
         table.add_column(col, justify="left" if col == "agent" else "right", no_wrap=col != "agent", overflow="fold")
 
     def pm(row: dict, name: str, fmt: str = ".2f") -> str:
@@ -47,7 +48,21 @@ def gait_table(ranked: list[dict], limit: int = 20):
                       f"{row['knee_midstance_deg_mean']:.0f} / {row['knee_swing_peak_deg_mean']:.0f}",
                       f"{row['stop_share_gait_max_mean']:.0%}",
                       pm(row, "swing_clearance_m", ".3f"), pm(row, "foot_slip_m_s"),
-                      pm(row, "cost_of_transport"), pm(row, "air_nl_per_m", ".1f"))
+                      pm(row, "cost_of_transport"), pm(row, "air_nl_per_m", ".1f"),
+                      f"{row['walk_targets_met']}/{len(WALK_TARGETS)}")
+    return table
+
+
+def targets_table(row: dict):
+    """One agent's means against the walk's targets (pamrun.evaluation.targets), each met or missed."""
+    table = Table(title=f"Walk targets of {row['agent']} (means over its episodes; human walking near 1 m/s)")
+    for col in ("metric", "target", "value", ""):
+        table.add_column(col, justify="left" if col in ("metric", "") else "right", no_wrap=True)
+    for key in WALK_TARGETS:
+        value = row.get(key, float("nan"))
+        table.add_row(key.removesuffix("_mean"), bounds_text(key), f"{value:.3g}",
+                      "[green]met[/green]" if met(key, value) else "[red]missed[/red]")
+    table.caption = f"{row['walk_targets_met']} of {len(WALK_TARGETS)} met"
     return table
 
 

@@ -52,7 +52,9 @@ EVAL_FIELDS = ("frames", "episodes", "wall_time_s", "eval_s", "walk_pass_rate", 
                "speed_mean", "step_frequency_hz_mean", "stride_length_m_mean", "duty_factor_mean",
                "step_time_symmetry_mean", "step_length_symmetry_mean", "stop_share_gait_max_mean",
                "cost_of_transport_mean", "air_nl_per_m_mean", "double_support_share_mean", "flight_share_mean",
-               "knee_midstance_deg_mean", "knee_swing_peak_deg_mean")
+               "knee_midstance_deg_mean", "knee_swing_peak_deg_mean", "step_length_m_mean", "foot_slip_m_s_mean",
+               # how many of the walk's targets those means meet (pamrun.evaluation.targets)
+               "walk_targets_met")
 # What a training writes besides .hydra/ and its config (an early kill's leftovers are moved aside).
 LEFTOVERS = ("episodes.csv", "evals.csv", "run.json", "tensorboard", "training.png", "evals.png")
 # What a resume takes from its command line: the budget (wall time counts the run's whole time).

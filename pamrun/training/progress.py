@@ -10,6 +10,7 @@ from typing import Callable
 
 from pamrun.config import TrainConfig
 from pamrun.evaluation.ranking import pass_text
+from pamrun.evaluation.targets import WALK_TARGETS
 from pamrun.runs.files import Progress, duration
 
 RATE_WINDOW_S = 30.0  # the frames/s and updates/s shown: over about this many recent seconds
@@ -85,7 +86,8 @@ class TrainingProgress:
     def evaluated(self, result: dict, counters: dict) -> None:
         """The evaluation ``result`` (:class:`pamrun.evaluation.evaluator.TrainingEvaluator`'s) shown at once."""
         stand = round(result["stand_rate"] * result["episodes"])
-        self.eval_text = f"eval: stand {stand}/{result['episodes']} walk {pass_text(result)}"
+        self.eval_text = (f"eval: stand {stand}/{result['episodes']} walk {pass_text(result)}"
+                          f" targets {result.get('walk_targets_met', 0)}/{len(WALK_TARGETS)}")
         self.counters = dict(counters)
         self.show(now=True)
 
