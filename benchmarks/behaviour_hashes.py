@@ -18,6 +18,11 @@ before and after the package split of issue 36:
     walker episodes.csv 72c90ea8b2ec3d3aac7ad82a2b38f60b 66
     walker evals.csv 2d2ec5b2bd4c8d08e0c21db87b68aee2 2
     eval episodes.jsonl 7f0f6c6f75f0b45d1f738f1a43f0c7f3 50
+
+Counting a foot that bounces as it lands as one step (steady contact, pamrun.evaluation.metrics)
+changed the evaluation's step metrics, and so its line, on purpose; since then:
+
+    eval episodes.jsonl 6ea2837016f2fa6d2f3f85d28affd126 50
 """
 
 from __future__ import annotations
