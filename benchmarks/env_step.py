@@ -1,6 +1,7 @@
 """Environment steps per second vs bare MuJoCo stepping of the same model.
 
-    python benchmarks/env_step.py [--seconds 5] [--repeats 5] [--presets sized thesis] [--models] [--lean-info] [--timer cpu]
+    python benchmarks/env_step.py [--seconds 5] [--repeats 5] [--presets sized thesis] [--models] [--clock] [--terrain]
+                                  [--lean-info] [--timer cpu]
 
 Prints, per muscle preset, control steps/s of PamWalker-v0 with random actions and, in the same run, the
 rate of bare ``mj_step`` on the same model with the same number of physics substeps
@@ -11,7 +12,9 @@ timing) and ``numpy`` (the reference); the thesis coupling always uses numpy. ``
 measures the sized preset instead with each pneumatic model beyond the thesis' (``MODELS``:
 the flow-limited valve, hysteresis, the Tondu-Lopez law, the toe) against today's, both
 kernels, in the same run; ``--clock`` the sized preset with the gait clock and every kgait
-demand on (``CLOCK``) against today's.
+demand on (``CLOCK``) against today's; ``--terrain`` the sized preset (numba) on each of the
+robustness suite's terrains (``TERRAINS``, begun 0.3 m ahead, so that the robot, falling under
+random actions, lands on them) against the flat floor.
 
 Each measurement is repeated ``--repeats`` times, env and bare alternating so that a change
 of machine load hits both; the median and the range (min-max) of the env rate, the bare
@@ -34,6 +37,7 @@ import mujoco
 import numpy as np
 
 from pamrun.config import MuscleConfig, preset
+from pamrun.config.experiments import terrain_perturbations
 from pamrun.task.env import PamWalkerEnv
 
 CLOCKS = {"wall": time.perf_counter, "cpu": time.thread_time}
@@ -88,6 +92,9 @@ MODELS = {
 # the env's reward path the clock adds: --clock measures it against today's in the same run
 CLOCK = {"env": {"gait_period_s": 0.8, "swing_clearance_m": 0.05, "swing_knee_deg": 20.0, "stance_knee_deg": 30.0}}
 
+# The robustness suite's terrains (eval.perturbations), begun as near the start as the env allows
+TERRAINS = {name: {"env": {**p.values["env"], "terrain_x_m": 0.3}} for name, p in terrain_perturbations().items()}
+
 
 def merged(base: dict, over: dict) -> dict:
     return {k: merged(base.get(k, {}), v) if isinstance(v, dict) else v for k, v in over.items()} | {
@@ -99,7 +106,7 @@ def spread(values: list[float]) -> tuple[float, float, float]:
 
 
 def measure(name: str, kernel: str, seconds: float, repeats: int, model: str = "", lean_info: bool = False) -> dict:
-    kwargs = merged({"muscle": {**preset("muscle", name), "kernel": kernel}}, {**MODELS, "clock": CLOCK}.get(model, {}))
+    kwargs = merged({"muscle": {**preset("muscle", name), "kernel": kernel}}, {**MODELS, "clock": CLOCK, **TERRAINS}.get(model, {}))
     env = PamWalkerEnv(**kwargs, lean_info=lean_info)
     used = "numba" if env.drive.compiled else "numpy"  # the thesis coupling is numpy only
     ready_s = warm_up(env)
@@ -143,6 +150,7 @@ def main() -> None:
     parser.add_argument("--presets", nargs="+", default=["sized", "thesis"])
     parser.add_argument("--models", action="store_true", help="the sized preset with each pneumatic model")
     parser.add_argument("--clock", action="store_true", help="the sized preset with the gait clock and its demands")
+    parser.add_argument("--terrain", action="store_true", help="the sized preset (numba) on each terrain")
     parser.add_argument("--lean-info", action="store_true",
                         help="the env as training builds it: info holds only what training reads (lean_info=True)")
     parser.add_argument("--timer", choices=CLOCKS, default="wall",
@@ -155,7 +163,9 @@ def main() -> None:
     for model in ("", *MODELS) if args.models else ("", "clock") if args.clock else ():
         for kernel in ("numba", "numpy"):
             results.append(measure("sized", kernel, args.seconds, args.repeats, model, args.lean_info))
-    for name in () if args.models or args.clock else args.presets:
+    for model in ("", *TERRAINS) if args.terrain else ():
+        results.append(measure("sized", "numba", args.seconds, args.repeats, model, args.lean_info))
+    for name in () if args.models or args.clock or args.terrain else args.presets:
         coupling = preset("muscle", name).get("coupling", MuscleConfig().coupling)
         for kernel in (("numba", "numpy") if coupling == "kinematic" else ("numpy",)):
             results.append(measure(name, kernel, args.seconds, args.repeats, lean_info=args.lean_info))

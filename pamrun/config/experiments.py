@@ -65,7 +65,7 @@ def _robustness_perturbations() -> dict[str, Perturbation]:
     its proportional regulators at 50-100 ms, pamrun.config.regulator.RegulatorConfig), 10 % less
     top pressure (a sagging supply), sensor noise, a 5x larger start noise, and a 10 N s push
     (100 N for 0.1 s) at 5 s forward, backward and sideways; and the ground
-    (:func:`_terrain_perturbations`)."""
+    (:func:`terrain_perturbations`)."""
     push = {"push_time_s": 5.0, "push_duration_s": 0.1}
     return {
         "nominal": Perturbation("the evaluation as is"),
@@ -83,11 +83,11 @@ def _robustness_perturbations() -> dict[str, Perturbation]:
                                       values={"env": {**push, "push_impulse_ns": [-10.0, 0.0, 0.0]}}),
         "push_sideways": Perturbation("push 10 N s sideways at 5 s",
                                       values={"env": {**push, "push_impulse_ns": [0.0, 10.0, 0.0]}}),
-        **_terrain_perturbations(),
+        **terrain_perturbations(),
     }
 
 
-def _terrain_perturbations() -> dict[str, Perturbation]:
+def terrain_perturbations() -> dict[str, Perturbation]:
     """Ground other than the flat floor, from 1 m ahead of the start (``env.terrain_x_m``;
     pamrun.physics.terrain): a 3 deg slope up and down (a wheelchair ramp's is at most ~4.8 deg),
     a 2 cm step up (a doorsill), and uneven ground within +-1 cm."""
@@ -172,7 +172,7 @@ class EvalConfig:
     suite: str = ""  # "" = one evaluation; a name in suites: every agent under each of its perturbations
     suites: dict[str, list[str]] = field(default_factory=lambda: {  # suite -> its perturbations' names
         "robustness": list(_robustness_perturbations()), "models": list(_model_perturbations()),
-        "terrain": ["nominal", *_terrain_perturbations()]})
+        "terrain": ["nominal", *terrain_perturbations()]})
     # Typed Any, not Perturbation, so that `+eval.perturbations.NAME.values.env.KEY=...` can add one
     # on the command line; __post_init__ makes each a Perturbation.
     perturbations: dict[str, Any] = field(default_factory=lambda: {

@@ -114,7 +114,7 @@ class EnvConfig:
     # starts on flat ground and the terrain begins terrain_x_m ahead, across the path.
     slope_deg: float = 0.0  # a slope [deg], + uphill in the walking direction (+x); |slope| <= 15
     step_height_m: float = 0.0  # a step across the path [m], + up, - down; |height| <= 0.1
-    rough_height_m: float = 0.0  # uneven ground, each point within +-this [m] (a heightfield, fixed per model); <= 0.05
+    rough_height_m: float = 0.0  # uneven ground, each point within +-this [m] (buried spheres on a 10 cm grid, fixed per model); <= 0.05
     terrain_x_m: float = 1.0  # where the terrain begins [m ahead of the start]; >= 0.3, clear of the feet
 
     def __post_init__(self) -> None:
