@@ -55,12 +55,13 @@ def gait_table(ranked: list[dict], limit: int = 20):
 
 def targets_table(row: dict):
     """One agent's means against the walk's targets (pamrun.evaluation.targets), each met or missed."""
-    table = Table(title=f"Walk targets of {row['agent']} (means over its episodes; human walking near 1 m/s)")
+    table = Table(title=f"Walk targets: {row['agent']} (episode means; targets from human walking near 1 m/s)")
     for col in ("metric", "target", "value", ""):
         table.add_column(col, justify="left" if col in ("metric", "") else "right", no_wrap=True)
     for key in WALK_TARGETS:
         value = row.get(key, float("nan"))
-        table.add_row(key.removesuffix("_mean"), bounds_text(key), f"{value:.3g}",
+        name = "pressure_change_kpa" if key == "pressure_change_mean" else key.removesuffix("_mean")  # per control step
+        table.add_row(name, bounds_text(key), f"{value:.3g}",
                       "[green]met[/green]" if met(key, value) else "[red]missed[/red]")
     table.caption = f"{row['walk_targets_met']} of {len(WALK_TARGETS)} met"
     return table
