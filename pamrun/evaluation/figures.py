@@ -191,6 +191,11 @@ def pressures(jsonl_path: Path, agent: str, episode: int, png_path: Path) -> Pat
     return save_figure(fig, png_path, dpi=100)
 
 
+def control_step_s(t: np.ndarray) -> float:
+    """The control step [s] of an episode's row times ``t`` (its first time when it has one row)."""
+    return float(np.median(np.diff(t))) if len(t) > 1 else float(t[0])
+
+
 def _strides(episodes: list[dict], contact_threshold_n: float) -> tuple[np.ndarray | None, dict[str, list]]:
     """Each leg's joint angles over its strides (touchdown to touchdown of its foot), in deg:
     the gait-cycle grid (None without episodes) and per side a list of (k, points, 5) arrays."""
@@ -202,7 +207,7 @@ def _strides(episodes: list[dict], contact_threshold_n: float) -> tuple[np.ndarr
             continue
         angle = np.rad2deg(np.asarray(s["joint_angle_rad"], float)).reshape(len(s["t_s"]), len(SIDES), -1)
         t = np.asarray(s["t_s"], float)
-        dt = float(np.median(np.diff(t))) if len(t) > 1 else float(t[0])
+        dt = control_step_s(t)
         for foot, (side, rows) in enumerate(zip(SIDES, touchdowns(steady(contacts(s, contact_threshold_n), dt)))):
             grid, cycles = gait_cycle(angle[:, foot], rows)
             strides[side].append(cycles)
@@ -214,7 +219,7 @@ def _footfalls(ax, episodes: list[dict], contact_threshold_n: float, footfall_s:
     if episodes and len(episodes[0]["steps"]["t_s"]):
         s = episodes[0]["steps"]
         t = np.asarray(s["t_s"], float)
-        dt = float(np.median(np.diff(t))) if len(t) > 1 else float(t[0])
+        dt = control_step_s(t)
         down = contacts(s, contact_threshold_n)
         for foot, side in enumerate(SIDES):
             edges = np.diff(np.concatenate(([0], down[:, foot].astype(int), [0])))

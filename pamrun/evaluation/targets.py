@@ -2,7 +2,7 @@
 means of an agent's episodes (:func:`pamrun.evaluation.episodes.aggregate`; the metrics:
 :mod:`pamrun.evaluation.metrics`).
 
-The bounds are the walking issue's (pamrun issue 38), from human walking at 0.8-1.4 m/s:
+The bounds come from human walking at 0.8-1.4 m/s:
 duty 61 % (Kirtley, Whittle & Jefferson 1985, J Biomed Eng 7:282), so about 20 % of the cycle
 on both feet and none in the air; the knee near straight at mid-stance and about 60 deg at its
 swing peak (the standard sagittal knee curve); 1.81 steps/s (Umberger & Martin 2007, J Exp Biol
