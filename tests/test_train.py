@@ -329,3 +329,77 @@ def test_resume_takes_a_new_budget_and_names_what_it_ignores(tmp_path):
     assert saved.train.max_frames == 800 and saved.algo.actor_lr == 1e-4  # the walking recipe's
     proc = run_pamrun("train", f"resume={run_dir}")
     assert proc.returncode == 0 and "already finished its budget (800 frames" in " ".join(proc.stdout.split())
+
+
+@pytest.mark.slow
+def test_a_run_started_from_a_trained_agent_begins_with_its_networks(tmp_path):
+    """``train.init_from``: a run's last.pt gives the new run its actor, critics, targets and replay
+    buffer (not the buffer where reward.* differs); an agent file its actor alone (the critics new,
+    the buffer empty); the agent is evaluated at frame 0; the counters start at 0. With no updates
+    the networks end as they began, so last.pt shows what was taken."""
+    source = tmp_path / "source"
+    assert train_here(source, *TINY, "train.max_frames=400", "train.eval_every_frames=0") == "max_frames"
+    a = torch.load(source / "checkpoints" / "last.pt", weights_only=True)
+    still = ["train.max_frames=400", "train.init_random_frames=0", "train.updates_per_frame=0"]
+
+    full = tmp_path / "full"
+    assert train_here(full, *TINY, *still, f"train.init_from={source / 'checkpoints' / 'last.pt'}") == "max_frames"
+    b = torch.load(full / "checkpoints" / "last.pt", weights_only=True)
+    for part in ("actor", "critics", "actor_target", "critic_targets"):
+        assert all(torch.equal(v, b["networks"][part][k]) for k, v in a["networks"][part].items()), part
+    assert b["counters"]["frames"] == 400 and b["counters"]["updates"] == 0 and b["buffer"]["length"] == 800
+    rows = list(csv.DictReader((full / "evals.csv").open()))
+    assert [int(r["frames"]) for r in rows] == [0, 400]  # the agent it starts from, then train=smoke's own
+    assert rows[0]["return_mean"] == rows[1]["return_mean"]  # the same actor, deterministic evaluations
+
+    agent = source / "checkpoints" / "actor_only.pt"
+    torch.save({"actor": a["actor"], "meta": {}}, agent)
+    half = tmp_path / "half"
+    assert train_here(half, *TINY, *still, "train.eval_every_frames=0", f"train.init_from={agent}") == "max_frames"
+    c = torch.load(half / "checkpoints" / "last.pt", weights_only=True)
+    assert all(torch.equal(v, c["networks"]["actor"][k]) for k, v in a["networks"]["actor"].items())
+    assert not all(torch.equal(v, c["networks"]["critics"][k]) for k, v in a["networks"]["critics"].items())
+    assert c["buffer"]["length"] == 400
+
+    other = tmp_path / "other"  # rewards summed with another reward.kv: the buffer stays behind
+    assert train_here(other, *TINY, *still, "train.eval_every_frames=0", "reward.kv=0.5",
+                      f"train.init_from={source / 'checkpoints' / 'last.pt'}") == "max_frames"
+    d = torch.load(other / "checkpoints" / "last.pt", weights_only=True)
+    assert d["buffer"]["length"] == 400
+    assert all(torch.equal(v, d["networks"]["critics"][k]) for k, v in a["networks"]["critics"].items())
+
+
+@pytest.mark.slow
+def test_an_agent_that_does_not_fit_fails_before_the_run_dir(tmp_path):
+    """A missing file, or an agent of another observation size (here one told its commanded speed),
+    stops ``pamrun train`` naming train.init_from before anything is written."""
+    source = tmp_path / "source"
+    assert train_here(source, *TINY, "train.max_frames=200", "train.eval_every_frames=0",
+                      "env.speed_command=true") == "max_frames"
+    for init, words in ((tmp_path / "nowhere.pt", "no such file"), (source / "checkpoints" / "last.pt", "observations")):
+        run_dir = tmp_path / "bad"
+        proc = run_pamrun("train", *TINY, f"train.init_from={init}", f"hydra.run.dir={run_dir}")
+        assert proc.returncode != 0 and "train.init_from" in proc.stderr and words in proc.stderr, proc.stderr[-2000:]
+        assert not run_dir.exists()
+
+
+def test_a_run_from_a_trained_agent_has_learned_before_frame_0(cfg):
+    """Its "stand, learned" milestone can come at the evaluation of frame 0; a new actor's cannot."""
+    from pamrun.task.criteria import stands_learned
+
+    assert not stands_learned(1.0, 0, cfg)
+    cfg.train.init_from = "agents/walker_td3_seed0.pt"
+    assert stands_learned(1.0, 0, cfg) and not stands_learned(0.9, 0, cfg)
+
+
+def test_a_run_from_a_trained_agent_starts_at_the_walking_stage(cfg):
+    """Its curriculum weighs the replay samples with train.walk_weights from frame 0, with no
+    evaluation needed; a new actor's waits for the stand milestone."""
+    from pamrun.learning.curriculum import WalkCurriculum
+
+    cfg.train.walk_weights = {"kflight": 10.0}
+    assert not WalkCurriculum(cfg).walking
+    cfg.train.init_from = "agents/walker_td3_seed0.pt"
+    curriculum = WalkCurriculum(cfg)
+    assert curriculum.walking and curriculum.since == 0 and curriculum.transform.delta["kflight"] == 10.0
+    assert "train.init_from" in curriculum.describe()

@@ -84,6 +84,13 @@ class TrainConfig:
     actor_start_frames: int = 0  # frames before the actor's first update: until then only the critics learn
     buffer_size: int = 1_000_000  # the MathWorks example's ExperienceBufferLength
     checkpoint_every_frames: int = 20_000  # write checkpoints/last.pt (and the buffer) this often
+    # Start from a trained agent (a fine-tune, e.g. under other walk_weights): an agent file
+    # (checkpoints/*.pt, agents/*.pt) gives the actor; a run's checkpoints/last.pt the actor, the
+    # critics and, where reward.* is the same, its replay buffer (re-weighted like every sample).
+    # The counters start at 0, the agent is evaluated at frame 0, and a stand-then-walk curriculum
+    # starts at its walking stage. Set train.init_random_frames=0 to keep its first frames its own.
+    # "" = from scratch
+    init_from: str = ""
     # Evaluation during training: eval_episodes deterministic episodes of pamrun eval's walk test
     # (its seeds, start noise and criteria: the eval group) into evals.csv, TensorBoard eval/*, and
     # checkpoints/best_eval.pt (the best agent by eval.rank_by).

@@ -327,7 +327,13 @@ def load_last(ckpt_dir: Path, learner, buffer) -> dict:
         first = (str(err).strip().splitlines() or [""])[0][:120]
         raise CheckpointError(last, f"unreadable resume state ({type(err).__name__}: {first})") from None
     set_rng_states(state["rng"])
-    record = state.get("buffer")
+    load_buffer(ckpt_dir, state.get("buffer"), buffer)
+    return counters
+
+
+def load_buffer(ckpt_dir: Path, record: dict | None, buffer) -> None:
+    """The replay buffer a ``last.pt`` in ``ckpt_dir`` names (``record``: its ``"buffer"`` entry),
+    each file checked against the size and checksum it recorded; :class:`CheckpointError` naming the file."""
     if record is None:  # written by pamrun before buffer fingerprints: no check possible
         folder = next((ckpt_dir / n for n in ("buffer", "buffer.old") if (ckpt_dir / n).exists()), None)
         if folder is None:
@@ -352,7 +358,6 @@ def load_last(ckpt_dir: Path, learner, buffer) -> dict:
         raise CheckpointError(folder, f"replay buffer holds {len(buffer)} transitions, "
                                       f"the checkpoint {record['length']}")
     check_reward_terms(buffer, folder)
-    return counters
 
 
 # The reward terms' order in the replay buffers pamrun saved before it stored them by name (one

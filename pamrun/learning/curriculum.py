@@ -14,6 +14,7 @@ Until the "stand, learned" milestone (:func:`pamrun.task.criteria.stands_learned
 optimises the env's reward; from it on, the forward weight is ``walk_kvx`` instead of
 ``reward.kvx``, and every weight in ``walk_weights`` replaces the env's. The stage is a
 function of the run's evaluations (``evals.csv``), so a resumed run takes it up where it was.
+A run from a trained agent (``train.init_from``) is at the walking stage from its first frame.
 """
 
 from __future__ import annotations
@@ -91,6 +92,9 @@ class WalkCurriculum:
                         **({"kvx": self.kvx} if self.kvx is not None else {})}  # the walking stage's
         self.since: int | None = None  # frames of the evaluation that started the walking stage
         self.transform = Reweight({k: getattr(cfg.reward, k) for k in REWARD_KEYS})
+        if self.active and cfg.train.init_from:  # a trained agent's run walks from its first frame
+            self.walking, self.since = True, 0
+            self.transform.set_weights(self.weights)
 
     def replay(self, rows: list[dict]) -> None:
         """Take up the stage a resumed run was in, from its evals.csv rows."""
@@ -115,6 +119,7 @@ class WalkCurriculum:
 
     def describe(self) -> str:
         changed = ", ".join(f"{k} {getattr(self.cfg.reward, k):g} -> {w:g}" for k, w in self.changed().items())
-        return (f"Walking stage of the curriculum since {self.since} frames, when it first stood in every "
-                f"evaluation episode: the learner's weights {changed} (train.walk_kvx = {self.kvx}, "
-                f"train.walk_weights; the env keeps reward.*).")
+        why = ("from the first frame, a trained agent's run (train.init_from)" if self.cfg.train.init_from else
+               f"since {self.since} frames, when it first stood in every evaluation episode")
+        return (f"Walking stage of the curriculum {why}: the learner's weights {changed} "
+                f"(train.walk_kvx = {self.kvx}, train.walk_weights; the env keeps reward.*).")

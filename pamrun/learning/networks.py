@@ -324,6 +324,21 @@ class Learner:
                              "critic_targets": self.critic_targets.state_dict()},
                 "actor_opt": self.actor_opt.state_dict(), "critic_opt": self.critic_opt.state_dict()}
 
+    def start_from(self, state: dict) -> str:
+        """Take a trained agent's networks (``train.init_from``): a resume state's (``last.pt``)
+        actor, critics and their targets, or an agent file's actor (its target a copy, the critics
+        new). The optimisers and the update count start afresh. Returns what it took, in words."""
+        nets = state.get("networks")
+        if nets is None:
+            self.actor.module.load_state_dict(state["actor"], strict=False)  # net.*: a SAC actor's head stays new
+            self.actor_target.load_state_dict(self.actor.module.state_dict())
+            return "the actor (the critics learn from new)"
+        self.actor.module.load_state_dict(nets["actor"])
+        self.actor_target.load_state_dict(nets["actor_target"])
+        self.critics.load_state_dict(nets["critics"])
+        self.critic_targets.load_state_dict(nets["critic_targets"])
+        return "the actor, the critics and their targets"
+
     def load_state_dict(self, state: dict, updates: int) -> None:
         if "networks" not in state:
             raise ValueError("resume state of an earlier pamrun (TorchRL loss state): continue it with the pamrun that wrote it")

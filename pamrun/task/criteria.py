@@ -44,7 +44,10 @@ def walk_passed(episode: dict, ecfg) -> bool:
 
 
 def actor_learns_from(cfg: Config) -> int:
-    """Frames at the run's first actor update (after its random phase and critic warm-up)."""
+    """Frames at the run's first actor update (after its random phase and critic warm-up); -1 for
+    a run that starts from a trained agent (``train.init_from``): its actor learned before frame 0."""
+    if cfg.train.init_from:
+        return -1
     return max(cfg.train.init_random_frames, cfg.train.actor_start_frames)
 
 

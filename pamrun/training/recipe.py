@@ -15,6 +15,7 @@ curriculum (:mod:`pamrun.learning.curriculum`) is a transform of the replay buff
 
 from __future__ import annotations
 
+import copy
 import functools
 import math
 import random
@@ -25,6 +26,7 @@ import gymnasium as gym
 import numpy as np
 import torch
 from hydra.core.hydra_config import HydraConfig
+from omegaconf import open_dict
 from torch.utils.tensorboard import SummaryWriter
 from torchrl.collectors import AsyncCollector, Collector, MultiAsyncCollector, MultiSyncCollector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer, Unbounded
@@ -32,7 +34,7 @@ from torchrl.envs import GymWrapper
 from torchrl.envs.gym_like import default_info_dict_reader
 
 import pamrun  # noqa: F401  (registers PamWalker-v0 with Gymnasium, in worker processes too)
-from pamrun.config import Config, to_object
+from pamrun.config import Config, ConfigError, to_object
 from pamrun.evaluation import board, figures
 from pamrun.evaluation.evaluator import TrainingEvaluator
 from pamrun.learning import checkpoints, networks
@@ -44,13 +46,13 @@ from pamrun.runs.files import run_dir
 from pamrun.runs.machine import Terminated, stop_signals, usable_cores
 from pamrun.task import randomize
 from pamrun.task.observation import space_sizes
+from pamrun.task.reward import REWARD_KEYS
 from pamrun.task.spec import EnvSpec
 from pamrun.task.symmetry import action_map, mirror_batch, observation_map
 from pamrun.training.console import end_of_run, header_table, summary_table
 from pamrun.training.progress import TrainingProgress
 
 NEW_RUN = {"frames": 0, "episodes": 0, "updates": 0, "wall_time_s": 0.0}  # a run's counters at its start
-check_config = directory.check_resume  # pamrun.cli runs it before any directory exists
 
 
 def make_env(cfg: Config, seed: int | None = None):
@@ -117,6 +119,11 @@ def train(cfg: Config, out: Path, overrides: list[str] = ()) -> str:
 
     console = make_console()
     randomize.check(cfg)  # before anything is written
+    if cfg.train.init_from and not (cfg.resume or RunFiles(out).last.exists()):
+        try:
+            check_start(cfg)
+        except ConfigError as err:
+            raise SystemExit(f"pamrun: invalid configuration: {err}") from None
     cfg, resuming = directory.open_run(cfg, out, console, overrides)
     for seed in (random.seed, np.random.seed, torch.manual_seed):  # Python's, numpy's and torch's generators
         seed(cfg.seed)
@@ -124,6 +131,8 @@ def train(cfg: Config, out: Path, overrides: list[str] = ()) -> str:
     learner, curriculum = make_learner(cfg), WalkCurriculum(cfg)
     buffer = make_buffer(cfg, curriculum)
     counters = resume(out, learner, buffer) if resuming else dict(NEW_RUN)
+    if cfg.train.init_from and not resuming:
+        start_from(cfg, learner, buffer, console)
     if counters["frames"] >= cfg.train.max_frames or counters["episodes"] >= cfg.train.max_episodes:
         console.print(f"{out} already finished its budget ({counters['frames']} frames, {counters['episodes']} "
                       f"episodes): nothing to do. To train on, give it a larger one: pamrun train "
@@ -135,6 +144,8 @@ def train(cfg: Config, out: Path, overrides: list[str] = ()) -> str:
     collector = make_collector(cfg, learner.explore, cfg.train.max_frames - run.frames,
                                max(0, cfg.train.init_random_frames - run.frames), cfg.seed + run.frames)
     console.print(header_table(cfg, out))
+    if run.evals and cfg.train.init_from and not run.frames:
+        run.evaluate()  # the agent it starts from, at frame 0
     status, failure = None, None
     try:
         with stop_signals():
@@ -156,6 +167,57 @@ def train(cfg: Config, out: Path, overrides: list[str] = ()) -> str:
     console.print(summary_table(run.info, run.log, run.saved, out))
     end_of_run(console, out, status, failure, run.log)
     return run.info["status"]
+
+
+def check_config(config) -> None:
+    """What ``pamrun train`` needs beyond a valid config, checked by pamrun.cli before any
+    directory exists: ``resume=`` names a run; ``train.init_from``, in a new run, an agent that fits."""
+    directory.check_resume(config)
+    if config.train.init_from and not config.resume:
+        config = copy.deepcopy(config)
+        with open_dict(config):
+            config.pop("hydra", None)  # in a callback's config: not part of pamrun's
+        check_start(to_object(config))
+
+
+def check_start(cfg: Config) -> None:
+    """``train.init_from`` is an agent pamrun can read, for this env's sizes and ``algo.hidden_sizes``."""
+    path = cfg.train.init_from
+    try:
+        agent = checkpoints.load_agent(path, *space_sizes(cfg.muscle, cfg.env))
+    except checkpoints.CheckpointError as err:
+        raise ConfigError("train.init_from", str(err)) from None
+    if agent.hidden_sizes != list(cfg.algo.hidden_sizes):
+        raise ConfigError("train.init_from", f"{path}: its actor's hidden layers are {agent.hidden_sizes}, "
+                                             f"algo.hidden_sizes {list(cfg.algo.hidden_sizes)}")
+
+
+def start_from(cfg: Config, learner: networks.Learner, buffer, console) -> None:
+    """A new run's networks from the trained agent in ``train.init_from``; from a run's last.pt
+    its replay buffer too, re-weighted to this run's rewards like any sample (its transitions
+    carry their reward terms), when the env's weights (``reward.*``) are the same."""
+    path = Path(cfg.train.init_from)
+    state = torch.load(path, map_location="cpu", weights_only=True)
+    try:
+        took = learner.start_from(state)
+    except (RuntimeError, KeyError) as err:  # another algorithm's critics, or other critic sizes
+        first = (str(err).strip().splitlines() or [""])[0][:160]
+        raise SystemExit(f"pamrun: train.init_from: {path}: its networks do not fit algo.* ({first})") from None
+    record, source = state.get("buffer"), (state.get("config") or {}).get("reward", {})
+    if record is not None:
+        ours = {k: getattr(cfg.reward, k) for k in REWARD_KEYS}
+        differ = sorted(k for k in REWARD_KEYS if source.get(k, 0.0) != ours[k])
+        if differ:
+            took += f"; not its replay buffer, whose rewards were summed with other weights ({', '.join(differ)})"
+        elif record["length"] > cfg.train.buffer_size:
+            took += f"; not its replay buffer, of {record['length']} transitions (train.buffer_size {cfg.train.buffer_size})"
+        else:
+            try:
+                checkpoints.load_buffer(path.parent, record, buffer)
+            except checkpoints.CheckpointError as err:
+                raise SystemExit(f"pamrun: train.init_from: {err}") from None
+            took += f", and its {len(buffer)} replayed transitions"
+    console.print(f"Starting from {took} of {path}.", soft_wrap=True)
 
 
 def main(dcfg) -> None:
