@@ -403,3 +403,32 @@ def test_a_run_from_a_trained_agent_starts_at_the_walking_stage(cfg):
     curriculum = WalkCurriculum(cfg)
     assert curriculum.walking and curriculum.since == 0 and curriculum.transform.delta["kflight"] == 10.0
     assert "train.init_from" in curriculum.describe()
+
+
+def test_the_gait_stage_follows_the_first_evaluation_that_passes_every_episode(cfg):
+    """train.gait_weights: stand, then walk at the stand milestone, then gait at the walking
+    stage's first evaluation whose episodes all pass; a resume's replay of evals.csv finds the same."""
+    from pamrun.learning.curriculum import WalkCurriculum
+
+    cfg.train.walk_weights, cfg.train.gait_weights = {"kspeed": 4.0, "kflight": 2.0}, {"kflight": 20.0}
+    curriculum, rows = WalkCurriculum(cfg), []
+    for frames, stand, walk in ((20000, 0.9, 0.0), (60000, 1.0, 1.0), (70000, 1.0, 0.9), (80000, 1.0, 1.0)):
+        started = curriculum.observe(stand, frames, walk)
+        rows.append({"frames": frames, "stand_rate": stand, "walk_pass_rate": walk})
+        assert started == (frames in (60000, 80000)), frames
+        assert curriculum.stage == {20000: "stand", 60000: "walk", 70000: "walk", 80000: "gait"}[frames]
+    assert curriculum.since == 60000 and curriculum.gait_since == 80000
+    assert curriculum.transform.delta["kflight"] == 20.0 and curriculum.transform.delta["kspeed"] == 4.0
+    assert curriculum.changed()["kflight"] == 20.0 and "Gait stage" in curriculum.describe()
+    again = WalkCurriculum(cfg)
+    again.replay(rows)
+    assert (again.stage, again.since, again.gait_since) == ("gait", 60000, 80000)
+
+
+def test_gait_weights_need_a_walking_stage_and_name_a_bad_key():
+    from pamrun.config import ConfigError
+
+    with pytest.raises(ConfigError, match="train.gait_weights"):
+        to_object(compose_config("experiment=thesis", "+train.gait_weights.kflight=20"))
+    with pytest.raises(ConfigError, match="train.gait_weights.kfly"):
+        to_object(compose_config("experiment=walker", "+train.gait_weights.kfly=20"))

@@ -118,6 +118,10 @@ class TrainConfig:
     walk_kvx: Optional[float] = None
     # The walking stage's other weights, any reward key (e.g. {kspeed: 3.0}), re-weighted the same way.
     walk_weights: dict[str, float] = field(default_factory=dict)
+    # A third stage, gait: from the walking stage's first evaluation in which every episode passes
+    # the walk test, these weights (any reward key, e.g. {kflight: 20}) replace the walking stage's,
+    # re-weighted the same way. {} = no third stage
+    gait_weights: dict[str, float] = field(default_factory=dict)
     # Domain randomisation (pamrun/task/randomize.py): each episode, with probability randomize_prob,
     # randomize_count of these eval.perturbations (the robustness suite's), each at a strength drawn
     # in [0, randomize_reach] of the way to it. [] = off. The evaluations during training stay nominal.
@@ -152,10 +156,13 @@ class TrainConfig:
         _require(self.walk_kvx is None or self.eval_every_frames > 0, "walk_kvx",
                  "needs evaluations during training (train.eval_every_frames > 0) to know when the agent stands")
         _require(self.walk_kvx is None or math.isfinite(self.walk_kvx), "walk_kvx", "must be finite")
-        for key, weight in self.walk_weights.items():
-            _require(key in RewardConfig.__dataclass_fields__, f"walk_weights.{key}",
-                     f"not a reward weight; known: {', '.join(RewardConfig.__dataclass_fields__)}")
-            _require(math.isfinite(weight), f"walk_weights.{key}", "must be finite")
+        for name in ("walk_weights", "gait_weights"):
+            for key, weight in getattr(self, name).items():
+                _require(key in RewardConfig.__dataclass_fields__, f"{name}.{key}",
+                         f"not a reward weight; known: {', '.join(RewardConfig.__dataclass_fields__)}")
+                _require(math.isfinite(weight), f"{name}.{key}", "must be finite")
+        _require(not self.gait_weights or self.walk_weights or self.walk_kvx is not None, "gait_weights",
+                 "is the stage after walking: needs train.walk_weights or train.walk_kvx")
         _require(not self.walk_weights or self.eval_every_frames > 0, "walk_weights",
                  "needs evaluations during training (train.eval_every_frames > 0) to know when the agent stands")
         _require(self.threads >= 0, "threads", f"must be >= 0 (0 = automatic), got {self.threads}")

@@ -15,6 +15,10 @@ optimises the env's reward; from it on, the forward weight is ``walk_kvx`` inste
 ``reward.kvx``, and every weight in ``walk_weights`` replaces the env's. The stage is a
 function of the run's evaluations (``evals.csv``), so a resumed run takes it up where it was.
 A run from a trained agent (``train.init_from``) is at the walking stage from its first frame.
+``train.gait_weights`` adds a third stage, gait: from the walking stage's first evaluation in
+which every episode passes the walk test, its weights replace those of the walking stage (a
+run that first learns to walk, however it can, then how: a flight or a crouch charged from the
+start keeps it from learning to walk at all).
 """
 
 from __future__ import annotations
@@ -33,9 +37,11 @@ FEATURES = "reward_unweighted"  # the replay buffer's key (under "next") of the 
 
 
 def reweighted_terms(cfg: Config) -> tuple[str, ...]:
-    """The terms the walking stage may weigh (``train.walk_weights``, ``train.walk_kvx``): the
-    env computes them even at weight 0 (its ``features``)."""
-    return tuple(k for k in REWARD_KEYS if k in cfg.train.walk_weights or (k == "kvx" and cfg.train.walk_kvx is not None))
+    """The terms the walking and gait stages may weigh (``train.walk_weights``, ``train.walk_kvx``,
+    ``train.gait_weights``): the env computes them even at weight 0 (its ``features``)."""
+    t = cfg.train
+    return tuple(k for k in REWARD_KEYS
+                 if k in t.walk_weights or k in t.gait_weights or (k == "kvx" and t.walk_kvx is not None))
 
 
 class FeatureReader(BaseInfoDictReader):
@@ -84,29 +90,48 @@ class Reweight(Transform):
 
 
 class WalkCurriculum:
-    """``train.walk_kvx``'s two stages on a :class:`Reweight` of the learner's replay buffer."""
+    """``train.walk_kvx``'s and ``train.walk_weights``' stages, stand then walk, and
+    ``train.gait_weights``' third, gait, on a :class:`Reweight` of the learner's replay buffer."""
 
     def __init__(self, cfg: Config):
-        self.cfg, self.kvx, self.walking = cfg, cfg.train.walk_kvx, False
+        self.cfg, self.kvx, self.stage = cfg, cfg.train.walk_kvx, "stand"
         self.weights = {**{k: getattr(cfg.reward, k) for k in REWARD_KEYS}, **cfg.train.walk_weights,
                         **({"kvx": self.kvx} if self.kvx is not None else {})}  # the walking stage's
+        self.gait_weights = {**self.weights, **cfg.train.gait_weights}  # the gait stage's
         self.since: int | None = None  # frames of the evaluation that started the walking stage
+        self.gait_since: int | None = None  # ... and the gait stage
         self.transform = Reweight({k: getattr(cfg.reward, k) for k in REWARD_KEYS})
         if self.active and cfg.train.init_from:  # a trained agent's run walks from its first frame
-            self.walking, self.since = True, 0
-            self.transform.set_weights(self.weights)
+            self._start("walk", 0)
+
+    @property
+    def walking(self) -> bool:
+        """At the walking stage or past it."""
+        return self.stage != "stand"
 
     def replay(self, rows: list[dict]) -> None:
         """Take up the stage a resumed run was in, from its evals.csv rows."""
         for row in rows:
-            self.observe(float(row["stand_rate"]), int(row["frames"]))
+            self.observe(float(row["stand_rate"]), int(row["frames"]), float(row.get("walk_pass_rate") or 0.0))
 
-    def observe(self, stand_rate: float, frames: int) -> bool:
-        """Take an evaluation into account; True when it starts the walking stage."""
-        if not self.active or self.walking or not stands_learned(stand_rate, frames, self.cfg):
-            return False
-        self.walking, self.since = True, frames
-        self.transform.set_weights(self.weights)
+    def observe(self, stand_rate: float, frames: int, walk_pass_rate: float = 0.0) -> bool:
+        """Take an evaluation into account; True when it starts a stage: walking at the "stand,
+        learned" milestone, gait (with ``train.gait_weights``) at the walking stage's first
+        evaluation in which every episode passes the walk test."""
+        if self.stage == "stand" and self.active and stands_learned(stand_rate, frames, self.cfg):
+            return self._start("walk", frames)
+        if self.stage == "walk" and self.cfg.train.gait_weights and walk_pass_rate >= 1.0:
+            return self._start("gait", frames)
+        return False
+
+    def _start(self, stage: str, frames: int) -> bool:
+        self.stage = stage
+        if stage == "walk":
+            self.since = frames
+            self.transform.set_weights(self.weights)
+        else:
+            self.gait_since = frames
+            self.transform.set_weights(self.gait_weights)
         return True
 
     @property
@@ -114,11 +139,16 @@ class WalkCurriculum:
         return self.kvx is not None or bool(self.cfg.train.walk_weights)
 
     def changed(self) -> dict[str, float]:
-        """The walking stage's weights that differ from the env's."""
-        return {k: w for k, w in self.weights.items() if w != getattr(self.cfg.reward, k)}
+        """The current stage's weights that differ from the env's."""
+        weights = self.gait_weights if self.stage == "gait" else self.weights
+        return {k: w for k, w in weights.items() if w != getattr(self.cfg.reward, k)}
 
     def describe(self) -> str:
         changed = ", ".join(f"{k} {getattr(self.cfg.reward, k):g} -> {w:g}" for k, w in self.changed().items())
+        if self.stage == "gait":
+            return (f"Gait stage of the curriculum since {self.gait_since} frames, when every evaluation episode "
+                    f"first passed the walk test: the learner's weights {changed} (train.gait_weights over "
+                    f"train.walk_weights; the env keeps reward.*).")
         why = ("from the first frame, a trained agent's run (train.init_from)" if self.cfg.train.init_from else
                f"since {self.since} frames, when it first stood in every evaluation episode")
         return (f"Walking stage of the curriculum {why}: the learner's weights {changed} "

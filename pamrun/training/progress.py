@@ -105,7 +105,7 @@ class TrainingProgress:
         parts += [f"frames {c['frames']}"] * (name != "frames") + [f"episodes {c['episodes']}"] * (name != "episodes")
         parts += [self.info, self.eval_text]
         if self.curriculum is not None and self.curriculum.active:
-            parts.append(f"stage {'walk' if self.curriculum.walking else 'stand'}")
+            parts.append(f"stage {self.curriculum.stage}")
         self.progress.show(fraction, "  ".join(p for p in parts if p), now)
 
     def stop(self) -> None:

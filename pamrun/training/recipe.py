@@ -245,6 +245,8 @@ class Run:
         self.info = directory.start_run_json(out, cfg, resuming, self.frames, overrides)
         if curriculum.walking:
             self.info.setdefault("walk_kvx_from_frames", curriculum.since)
+            if curriculum.stage == "gait":
+                self.info.setdefault("gait_weights_from_frames", curriculum.gait_since)
             console.print(curriculum.describe(), soft_wrap=True)
         self.saved = checkpoints.scan_saved(self.files.checkpoints)
         self.clock = Clock(counters["wall_time_s"])
@@ -311,10 +313,10 @@ class Run:
 
     def evaluate(self) -> dict:
         result = self.evals.run(self.learner.actor.module, self.learner.policy_state(), self.cfg, self.counters())
-        if self.curriculum.observe(result["stand_rate"], self.frames):
+        if self.curriculum.observe(result["stand_rate"], self.frames, result["walk_pass_rate"]):
             for key, weight in self.curriculum.changed().items():
                 self.log.writer.add_scalar(f"curriculum/{key}", weight, self.frames)
-            self.info["walk_kvx_from_frames"] = self.frames
+            self.info["gait_weights_from_frames" if self.curriculum.stage == "gait" else "walk_kvx_from_frames"] = self.frames
             self.console.print(self.curriculum.describe(), soft_wrap=True)
         self.progress.evaluated(result, self.counters())
         return result
