@@ -74,6 +74,17 @@ def test_rank_by_pass_rate_then_distance():
     assert [r["rank"] for r in ranked] == [1, 2, 3, 4]
 
 
+def test_an_agent_can_be_ranked_by_the_walk_targets_it_meets():
+    """eval.rank_by takes walk_targets_met: among agents that all pass, the one nearer a walk first."""
+    from pamrun.config import to_object
+    from tests.conftest import compose_config
+
+    cfg = to_object(compose_config("eval.rank_by=[walk_pass_rate,walk_targets_met,distance_mean]"))
+    rows = [{**row("run", 1.0, 9.0), "walk_targets_met": 2}, {**row("walk", 1.0, 8.0), "walk_targets_met": 6},
+            {**row("fall", 0.5, 9.5), "walk_targets_met": 9}]
+    assert [r["agent"] for r in rank(rows, cfg.eval.rank_by)] == ["walk", "run", "fall"]
+
+
 def test_rank_ascending_nan_last_and_ties_by_name():
     rows = [row("z", 0, 1, falls=0.2), row("y", 0, 1, falls=0.2), row("x", 0, 1, falls=0.0),
             row("w", 0, 1, falls=float("nan"))]

@@ -13,7 +13,7 @@ from pamrun.config.task import ENV_SECTIONS, check_speed_schedule
 # Aggregates an agent can be ranked by (``eval.rank_by``; pamrun.evaluation.episodes.aggregate computes them);
 # larger is better unless prefixed '-'.
 RANK_METRICS = ("walk_pass_rate", "walk_pass_ci_low", "stand_rate", "distance_mean", "distance_min", "return_mean", "duration_mean", "speed_mean",
-                "fall_rate", "max_abs_y_mean", "max_abs_y_max", "pressure_change_mean")
+                "fall_rate", "max_abs_y_mean", "max_abs_y_max", "pressure_change_mean", "walk_targets_met")
 # The cameras an episode is rendered from (``eval.camera``; PamWalker-v0's ``camera``, pamrun.task.camera).
 CAMERAS = ("follow", "fixed", "three_quarter")
 
