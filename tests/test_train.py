@@ -432,3 +432,19 @@ def test_gait_weights_need_a_walking_stage_and_name_a_bad_key():
         to_object(compose_config("experiment=thesis", "+train.gait_weights.kflight=20"))
     with pytest.raises(ConfigError, match="train.gait_weights.kfly"):
         to_object(compose_config("experiment=walker", "+train.gait_weights.kfly=20"))
+
+
+@pytest.mark.slow
+def test_a_walker_fine_tuned_with_gait_weights_starts_at_the_gait_stage(tmp_path):
+    """The shipped walker passes its frame-0 evaluation, so a fine-tune of it with train.gait_weights
+    is at the gait stage from frame 0: run.json records both switches, the console says so."""
+    run_dir = tmp_path / "gait"
+    status = train_here(run_dir, "experiment=walker", "train.init_from=agents/walker_td3_seed0.pt",
+                        "+train.gait_weights.kflight=20", "train.max_frames=200", "train.eval_every_frames=200",
+                        "train.eval_episodes=2", "train.select_perturbations=[]", "train.eval_video_every=0",
+                        "train.init_random_frames=0", "train.updates_per_frame=0.1")
+    assert status == "max_frames"
+    rows = list(csv.DictReader((run_dir / "evals.csv").open()))
+    assert rows[0]["frames"] == "0" and rows[0]["walk_pass_rate"] == "1.0"
+    info = json.loads((run_dir / "run.json").read_text())
+    assert info["walk_kvx_from_frames"] == 0 and info["gait_weights_from_frames"] == 0
