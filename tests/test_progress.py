@@ -136,8 +136,8 @@ def test_bar_on_a_terminal():
     """On a terminal: a bar with the line's fields beside it, and the stage of a walk curriculum."""
     clock, (con, out) = Clock(), console(terminal=True)
 
-    class Curriculum:  # the two flags of pamrun.learning.curriculum.WalkCurriculum the progress reads
-        active, walking = True, False
+    class Curriculum:  # the two attributes of pamrun.learning.curriculum.WalkCurriculum the progress reads
+        active, stage = True, "stand"
 
     progress = TrainingProgress(con, TrainConfig(max_frames=200_000), START, Curriculum(), clock=clock)
     assert progress.progress.bar is not None
