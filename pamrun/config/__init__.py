@@ -57,7 +57,7 @@ __all__ = ["CONF_DIR", "SPRING_FILE", "CAMERAS", "JOB_METRICS", "RANK_METRICS", 
            "JointRadii",
            "check_muscle_stretch", "check_toe_stiffness",
            "BodyConfig", "RewardConfig", "EnvConfig", "AlgoConfig", "TrainConfig", "EvalConfig",
-           "OptunaConfig", "Perturbation", "flatten", "ENV_SECTIONS", "SweepConfig", "StepExperiment", "PairConfig", "register_configs", "validate", "to_object",
+           "OptunaConfig", "Perturbation", "flatten", "ENV_SECTIONS", "SweepConfig", "StepExperiment", "PairConfig", "register_configs", "validate", "without_hydra", "to_object",
            "preset", "upgrade_saved_config", "as_config"]
 
 
@@ -163,16 +163,22 @@ def register_configs() -> None:
     ConfigStore.instance().store(name="pamrun_schema", node=Config)
 
 
+def without_hydra(cfg: DictConfig) -> DictConfig:
+    """The config without its ``hydra`` node (present in callbacks), a copy where it had one."""
+    if "hydra" in cfg:
+        cfg = copy.deepcopy(cfg)
+        with read_write(cfg), open_dict(cfg):
+            cfg.pop("hydra")
+    return cfg
+
+
 def validate(cfg: DictConfig, path: str = "") -> None:
     """Check every value of a composed config; raise ConfigError with the full key.
 
     Children are checked before their parent so the error names the deepest key. The
     ``hydra`` node (present in callbacks) is left out.
     """
-    if "hydra" in cfg:
-        cfg = copy.deepcopy(cfg)
-        with read_write(cfg), open_dict(cfg):
-            cfg.pop("hydra")
+    cfg = without_hydra(cfg)
     for key in cfg.keys():
         child = cfg._get_node(key)
         if isinstance(child, DictConfig) and OmegaConf.get_type(child) not in (dict, None):

@@ -15,7 +15,6 @@ curriculum (:mod:`pamrun.learning.curriculum`) is a transform of the replay buff
 
 from __future__ import annotations
 
-import copy
 import functools
 import math
 import random
@@ -26,7 +25,6 @@ import gymnasium as gym
 import numpy as np
 import torch
 from hydra.core.hydra_config import HydraConfig
-from omegaconf import open_dict
 from torch.utils.tensorboard import SummaryWriter
 from torchrl.collectors import AsyncCollector, Collector, MultiAsyncCollector, MultiSyncCollector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer, Unbounded
@@ -34,7 +32,7 @@ from torchrl.envs import GymWrapper
 from torchrl.envs.gym_like import default_info_dict_reader
 
 import pamrun  # noqa: F401  (registers PamWalker-v0 with Gymnasium, in worker processes too)
-from pamrun.config import Config, ConfigError, to_object
+from pamrun.config import Config, ConfigError, to_object, without_hydra
 from pamrun.evaluation import board, figures
 from pamrun.evaluation.evaluator import TrainingEvaluator
 from pamrun.learning import checkpoints, networks
@@ -174,10 +172,7 @@ def check_config(config) -> None:
     directory exists: ``resume=`` names a run; ``train.init_from``, in a new run, an agent that fits."""
     directory.check_resume(config)
     if config.train.init_from and not config.resume:
-        config = copy.deepcopy(config)
-        with open_dict(config):
-            config.pop("hydra", None)  # in a callback's config: not part of pamrun's
-        check_start(to_object(config))
+        check_start(to_object(without_hydra(config)))
 
 
 def check_start(cfg: Config) -> None:
