@@ -360,6 +360,40 @@ def test_a_foot_rolling_over_its_toe_does_not_slip_but_a_sliding_toe_does():
     assert episode_metrics({**steps, "sole_xyz_m": sliding}, spec())["foot_slip_m_s"] == pytest.approx(0.3)
 
 
+def tilted_soles(n: int, roll_rad: float, heading_rad: float = 0.0, pitch_rad: float = 0.0) -> np.ndarray:
+    """(n, 2, 4, 3) sole corners (front left, front right, back left, back right) of two 0.25 x 0.1 m
+    feet, each pitched ``pitch_rad`` about its lateral axis (toe down: rolling heel to toe), that axis
+    then tilted ``roll_rad`` from the horizontal (left edge up), and the foot turned ``heading_rad``
+    about the vertical."""
+    corners = np.array([[0.125, 0.05, 0.0], [0.125, -0.05, 0.0], [-0.125, 0.05, 0.0], [-0.125, -0.05, 0.0]])
+    c, s = math.cos(roll_rad), math.sin(roll_rad)
+    roll = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    c, s = math.cos(pitch_rad), math.sin(pitch_rad)
+    pitch = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    c, s = math.cos(heading_rad), math.sin(heading_rad)
+    yaw = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    foot = corners @ (yaw @ roll @ pitch).T
+    return np.broadcast_to(foot, (n, 2, 4, 3)).copy()
+
+
+def test_sole_tilt_is_the_side_to_side_angle_of_a_foot_on_the_ground():
+    """A sole rolled 10 deg onto its edge reads 10 deg whatever its heading and its pitch (a foot
+    rolling heel to toe is not on its edge); flat, 0; a tilted foot off the ground is not counted;
+    one point per foot has no tilt to give."""
+    n = 20
+    steps = still(n)
+    steps.pop("foot_xyz_m")
+    flat = {**steps, "sole_xyz_m": tilted_soles(n, 0.0, heading_rad=0.7, pitch_rad=0.3)}
+    assert episode_metrics(flat, spec())["sole_tilt_deg"] == pytest.approx(0.0, abs=1e-9)
+    on_edge = {**steps, "sole_xyz_m": tilted_soles(n, math.radians(-10.0), heading_rad=0.7, pitch_rad=0.3)}
+    assert episode_metrics(on_edge, spec())["sole_tilt_deg"] == pytest.approx(10.0)
+    soles = tilted_soles(n, 0.0)
+    soles[:, 1] = tilted_soles(n, math.radians(30.0))[:, 1]  # the left foot tilted 30 deg, but in the air
+    lifted = {**steps, "sole_xyz_m": soles, "foot_force_n": np.tile([300.0, 0.0], (n, 1))}
+    assert episode_metrics(lifted, spec())["sole_tilt_deg"] == pytest.approx(0.0, abs=1e-9)
+    assert math.isnan(episode_metrics(still(n), spec())["sole_tilt_deg"])
+
+
 # --------------------------------------------------------------------------- support and knee phases
 
 KNEE_LIMITS = LIMITS.copy()

@@ -15,7 +15,7 @@ from pamrun.evaluation.metrics import GaitSpec, foot_slip_m_s, knee_swing_stop_s
 from pamrun.physics.actuation import muscle_counts
 from pamrun.physics.body import JOINTS
 from pamrun.task import reward as reward_mod
-from pamrun.task.measures import KNEES, at_stops, ground_point_shift_m, stop_bounds, stop_share
+from pamrun.task.measures import KNEES, at_stops, ground_point_shift_m, sole_tilt_rad, stop_bounds, stop_share
 from pamrun.task.reward import REWARD_KEYS, TERMS, Reward, check_terms
 from tests.test_train import TINY, train_here
 
@@ -167,3 +167,41 @@ def test_flight_term_charges_a_step_with_no_foot_down():
     _, r_air, *_, info = env.step(zero)
     assert info["reward_unweighted"]["kflight"] == -1.0 and info["reward_terms"]["kflight"] == -2.0
     env.close()
+
+
+def test_flat_term_charges_the_feet_on_the_ground_for_standing_on_an_edge():
+    """reward.kflat: near 0 for the robot standing on its soles; with the robot lifted so the
+    spheres of one edge of each sole are 2 cm above those of the other, the feet's contact (the
+    env's) decides which tilts count: none in the air."""
+    import gymnasium as gym
+
+    env = gym.make("pamrun/PamWalker-v0", reward={"kflat": 2.0}).unwrapped
+    env.reset(seed=0)
+    zero = np.zeros(env.action_space.shape)
+    _, _, *_, info = env.step(zero)
+    standing = info["reward_unweighted"]["kflat"]
+    assert -math.radians(1.0) < standing <= 0.0 and info["reward_terms"]["kflat"] == 2.0 * standing
+    env.data.qpos[2] += 0.5  # both feet 0.5 m up: no foot on the ground, whatever its tilt
+    env.data.qvel[:] = 0.0
+    _, _, *_, info = env.step(zero)
+    assert info["reward_unweighted"]["kflat"] == 0.0
+    env.close()
+
+
+def test_sole_tilt_of_known_corners():
+    """pamrun.task.measures.sole_tilt_rad on corners laid out by hand: a 0.1 m wide sole with its
+    left edge 0.1 m x tan(0.2) higher tilts +0.2 rad, the mirror image -0.2, a flat one 0."""
+    rise = 0.1 * math.tan(0.2)
+    foot = np.array([[0.1, 0.05, rise], [0.1, -0.05, 0.0], [-0.1, 0.05, rise], [-0.1, -0.05, 0.0]])
+    mirrored = foot.copy()
+    mirrored[:, 2] = rise - foot[:, 2]
+    flat = foot.copy()
+    flat[:, 2] = 0.3
+    assert sole_tilt_rad(np.stack([foot, mirrored])) == pytest.approx([0.2, -0.2])
+    assert sole_tilt_rad(np.stack([flat, flat])) == pytest.approx([0.0, 0.0], abs=1e-12)
+    t = reward_mod.Transition(env=None, episode=None, torso=(), qpos=[], action=np.zeros(1), previous=np.zeros(1),
+                              soles_before=np.stack([foot, mirrored]), soles=np.stack([foot, mirrored]),
+                              contact_before=[True, True], contact=[True, False], forces_n=[300.0, 0.0])
+    assert reward_mod.TERMS["kflat"](t) == pytest.approx(-0.2)
+    t.contact = [True, True]
+    assert reward_mod.TERMS["kflat"](t) == pytest.approx(-0.4)

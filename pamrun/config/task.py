@@ -23,7 +23,7 @@ class RewardConfig:
     r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf
           - kda sum((a_prev - a_prev2)^2) - kfall [fell] - kstop n_stop / n
           + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip - kair air - kstep steps
-          + kgait (1 - clock miss) - kflight [no foot down] (the last nine: 0 in the thesis)
+          + kgait (1 - clock miss) - kflight [no foot down] - kflat tilt (the last ten: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -43,6 +43,9 @@ class RewardConfig:
     # the miss is force on a foot the clock swings; speed, or want of load, of a foot it stands on (pamrun.task.env, "Gait clock")
     kgait: float = 0.0
     kflight: float = 0.0  # penalty per control step that ends with neither foot on the ground (a walk has no flight)
+    # weight of the feet's side-to-side tilt: summed |tilt| [rad] of the feet on the ground at the step's
+    # end (a foot on its sole's edge grips by two corners, and pivots and slides)
+    kflat: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):

@@ -54,6 +54,10 @@ Definitions (the manual of :func:`episode_metrics`):
   the contact sphere lowest at the first of the two rows, followed to the second: a foot
   rolling over its heel or toe does not slip, and its ankle, which moves as it rolls, is not
   what touches the ground.
+* **sole tilt**: the mean side-to-side tilt [deg] of a foot in contact
+  (:func:`pamrun.task.measures.sole_tilt_rad`, its absolute value), over the rows in which it is,
+  pooled over both feet (0: every foot on the ground flat across its width; a foot on its
+  sole's edge grips by two corners, and pivots and slides).
 * **double support share** and **flight share**: the share of the rows after the first
   ``SETTLE_S`` (the start from standing, left out of these and the knee's metrics) in which both
   feet are in contact, and in which neither is (a human walking at 1 m/s: about 20 % and 0; a
@@ -97,6 +101,7 @@ from pamrun.task.measures import (
     STOP_MARGIN_DEG,
     at_stops,
     ground_point_shift_m,
+    sole_tilt_rad,
     step_length,
     stop_bounds,
 )
@@ -118,6 +123,7 @@ GAIT_METRICS = (
     "stop_share_gait_max",
     "swing_clearance_m",
     "foot_slip_m_s",
+    "sole_tilt_deg",
     "cost_of_transport",
     "air_nl",
     "air_nl_per_m",
@@ -278,6 +284,15 @@ def foot_slip_m_s(steps: dict, contact: np.ndarray) -> float:
     return float(speed[both].mean()) if both.any() else math.nan
 
 
+def sole_tilt_deg(steps: dict, contact: np.ndarray) -> float:
+    """Mean |side-to-side tilt| [deg] of the feet over the rows each is in contact (NaN without
+    such a row, or without the four contact points per foot it is measured on)."""
+    points = sole_points(steps)
+    if points.shape[2] != 4 or not contact.any():
+        return math.nan
+    return float(np.degrees(np.abs(sole_tilt_rad(points))[contact]).mean())
+
+
 def support_shares(steps: dict, contact: np.ndarray) -> tuple[float, float]:
     """Shares of the rows after the first ``SETTLE_S`` with both feet in contact and with neither
     (NaN, NaN when the episode is no longer)."""
@@ -393,6 +408,7 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
 
     out["swing_clearance_m"] = swing_clearance_m(steps, events)
     out["foot_slip_m_s"] = foot_slip_m_s(steps, contact)
+    out["sole_tilt_deg"] = sole_tilt_deg(steps, contact)
     out["double_support_share"], out["flight_share"] = support_shares(steps, contact)
     out["knee_midstance_deg"], out["knee_swing_peak_deg"] = knee_phases_deg(steps, events, spec)
 

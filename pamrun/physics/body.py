@@ -70,6 +70,9 @@ JOINTS = tuple(f"{side}_{joint}" for side in SIDES for joint in LEG_JOINTS)  # e
 TORSO = "torso"
 FEET = ("right_foot", "left_foot")
 FOOT_SENSORS = ("right_foot_force", "left_foot_force")
+# A foot's four contact spheres at its sole's corners, ``{side}_contact_{end}_{edge}``, in the order
+# the env reads their centres (sole_xyz_m): front left, front right, back left, back right.
+SOLE_CORNERS = tuple((end, edge) for end in ("front", "back") for edge in ("left", "right"))
 # body.toe: the passive toe hinges (not JOINTS: no muscle, no action) and the touch sensors under
 # the toes; a foot's normal ground force is its FOOT_SENSORS value plus its TOE_SENSORS value.
 TOE_JOINTS = ("right_toe", "left_toe")  # each hinged to its body of the same name

@@ -217,7 +217,7 @@ class PamWalkerEnv(gym.Env):
         self.knee_addresses = [self.qpos_addresses[k] for k in KNEES]  # right, left
         self._torso_id = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body_mod.TORSO)
         self._sole_ids = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"{side}_contact_{end}_{edge}")
-                                   for side in body_mod.SIDES for end in ("front", "back") for edge in ("left", "right")])
+                                   for side in body_mod.SIDES for end, edge in body_mod.SOLE_CORNERS])
         self._sole_ids_by_foot = self._sole_ids.reshape(2, -1)
         self.sole_radius_m = float(m.geom_size[self._sole_ids, 0].max())  # kgait's clearance: sphere bottom
         sensor = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, s) for s in body_mod.FOOT_SENSORS]

@@ -1,17 +1,20 @@
 """Per-step measures of the gait that the reward and the evaluation's gait metrics share: when a
 foot is on the ground, when a joint is at its stop, how far a foot's ground point slides, and a
-step's length. Each works on one step's values or, where it says so, on rows of them."""
+step's length, how far a foot on the ground is tilted onto its sole's edge. Each works on one
+step's values or, where it says so, on rows of them."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from pamrun.physics.body import JOINTS, SIDES
+from pamrun.physics.body import JOINTS, SIDES, SOLE_CORNERS
 
 STOP_MARGIN_DEG = 2.0  # a joint 'at its stop': within this of a limit (reward.kstop and the gait metrics)
 # A foot carrying less than this share of the body weight is taken as off the ground.
 CONTACT_WEIGHT_SHARE = 0.05
 KNEES = [JOINTS.index(f"{side}_knee") for side in SIDES]  # each leg's knee column, in foot order (right, left)
+_LEFT_EDGE = [i for i, (_, edge) in enumerate(SOLE_CORNERS) if edge == "left"]  # a sole's corners on its left edge
+_RIGHT_EDGE = [i for i, (_, edge) in enumerate(SOLE_CORNERS) if edge == "right"]
 
 
 def stop_bounds(limits_rad, margin_rad: float) -> np.ndarray:
@@ -50,3 +53,13 @@ def step_length(soles: np.ndarray, foot: int) -> float:
     of the other foot's; ``soles`` (2, k, 3), each foot's contact points (the one definition:
     the gait metrics' and reward.kstep's)."""
     return float(soles[foot, :, 0].mean() - soles[1 - foot, :, 0].mean())
+
+
+def sole_tilt_rad(soles) -> np.ndarray:
+    """(..., 2): each foot's side-to-side tilt [rad], positive with its left edge the higher: the
+    angle from the horizontal of the line from the mean of its right-edge contact points to the
+    mean of its left-edge ones; ``soles`` (..., 2, 4, 3) in ``SOLE_CORNERS`` order. A sole flat
+    on level ground gives 0, whatever its heading or its pitch (a foot rolling heel to toe)."""
+    soles = np.asarray(soles, float)
+    across = soles[..., _LEFT_EDGE, :].mean(axis=-2) - soles[..., _RIGHT_EDGE, :].mean(axis=-2)
+    return np.arctan2(across[..., 2], np.hypot(across[..., 0], across[..., 1]))

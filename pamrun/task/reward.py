@@ -21,7 +21,7 @@ import numpy as np
 
 from pamrun.config import RewardConfig
 from pamrun.task import clock
-from pamrun.task.measures import ground_point_shift_m, step_length, stop_share
+from pamrun.task.measures import ground_point_shift_m, sole_tilt_rad, step_length, stop_share
 
 REWARD_KEYS = tuple(f.name for f in fields(RewardConfig))  # the weights, in the summation order
 
@@ -150,6 +150,14 @@ def gait_clock(t: Transition) -> float:
 def flight(t: Transition) -> float:
     """-1 when the step ends with neither foot on the ground (each foot's force at most 5 % of the weight)."""
     return -float(not any(t.contact))
+
+
+@term("kflat")
+def sole_edge(t: Transition) -> float:
+    """Minus the summed side-to-side tilt [rad] of the feet on the ground at the step's end: a foot
+    standing on its sole's edge, not flat (pamrun.task.measures.sole_tilt_rad)."""
+    tilt = sole_tilt_rad(t.soles).tolist()
+    return -sum(abs(a) for a, down in zip(tilt, t.contact) if down)
 
 
 def check_terms(keys: Iterable[str] = REWARD_KEYS) -> None:

@@ -190,7 +190,8 @@ def check_start(cfg: Config) -> None:
 def start_from(cfg: Config, learner: networks.Learner, buffer, console) -> None:
     """A new run's networks from the trained agent in ``train.init_from``; from a run's last.pt
     its replay buffer too, re-weighted to this run's rewards like any sample (its transitions
-    carry their reward terms), when the env's weights (``reward.*``) are the same."""
+    carry their reward terms), when the env's weights (``reward.*``) are the same and it carries
+    every term this run's stages weigh."""
     path = Path(cfg.train.init_from)
     state = torch.load(path, map_location="cpu", weights_only=True)
     try:
@@ -202,8 +203,12 @@ def start_from(cfg: Config, learner: networks.Learner, buffer, console) -> None:
     if record is not None:
         ours = {k: getattr(cfg.reward, k) for k in REWARD_KEYS}
         differ = sorted(k for k in REWARD_KEYS if source.get(k, 0.0) != ours[k])
+        unrecorded = [k for k in reweighted_terms(cfg) if k not in source]  # terms added to pamrun since
         if differ:
             took += f"; not its replay buffer, whose rewards were summed with other weights ({', '.join(differ)})"
+        elif unrecorded:
+            took += (f"; not its replay buffer, whose transitions do not carry the terms this run's stages "
+                     f"weigh ({', '.join(unrecorded)}: added to pamrun after it was saved)")
         elif record["length"] > cfg.train.buffer_size:
             took += f"; not its replay buffer, of {record['length']} transitions (train.buffer_size {cfg.train.buffer_size})"
         else:
