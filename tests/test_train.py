@@ -335,7 +335,7 @@ def test_resume_takes_a_new_budget_and_names_what_it_ignores(tmp_path):
 def test_a_run_started_from_a_trained_agent_begins_with_its_networks(tmp_path):
     """``train.init_from``: a run's last.pt gives the new run its actor, critics, targets and replay
     buffer (not the buffer where reward.* differs, or where its transitions lack a term this run's
-    stages weigh); an agent file its actor alone (the critics new,
+    stages weigh, one its run never computed); an agent file its actor alone (the critics new,
     the buffer empty); the agent is evaluated at frame 0; the counters start at 0. With no updates
     the networks end as they began, so last.pt shows what was taken."""
     source = tmp_path / "source"
@@ -369,13 +369,14 @@ def test_a_run_started_from_a_trained_agent_begins_with_its_networks(tmp_path):
     assert d["buffer"]["length"] == 400
     assert all(torch.equal(v, d["networks"]["critics"][k]) for k, v in a["networks"]["critics"].items())
 
-    older = source / "checkpoints" / "older.pt"  # as saved by a pamrun without reward.kflat, which this run weighs
-    torch.save({**a, "config": {**a["config"], "reward": {k: v for k, v in a["config"]["reward"].items() if k != "kflat"}}},
-               older)
-    e_dir = tmp_path / "older"
-    assert train_here(e_dir, *TINY, *still, "+train.walk_weights.kflat=1",
-                      f"train.init_from={older}") == "max_frames"
-    assert torch.load(e_dir / "checkpoints" / "last.pt", weights_only=True)["buffer"]["length"] == 400
+    f_dir = tmp_path / "uncomputed"  # the source's env never computed kslip (weight 0, no stage): its buffer holds 0s
+    assert train_here(f_dir, *TINY, *still, "+train.walk_weights.kslip=1",
+                      f"train.init_from={source / 'checkpoints' / 'last.pt'}") == "max_frames"
+    assert torch.load(f_dir / "checkpoints" / "last.pt", weights_only=True)["buffer"]["length"] == 400
+    g_dir = tmp_path / "computed"  # f_dir's env computed kslip (its walking stage's): its buffer comes along
+    assert train_here(g_dir, *TINY, *still, "+train.walk_weights.kslip=2",
+                      f"train.init_from={f_dir / 'checkpoints' / 'last.pt'}") == "max_frames"
+    assert torch.load(g_dir / "checkpoints" / "last.pt", weights_only=True)["buffer"]["length"] == 800
 
 
 @pytest.mark.slow

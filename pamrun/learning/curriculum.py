@@ -44,6 +44,12 @@ def reweighted_terms(cfg: Config) -> tuple[str, ...]:
                  if k in t.walk_weights or k in t.gait_weights or (k == "kvx" and t.walk_kvx is not None))
 
 
+def computed_terms(cfg: Config) -> set[str]:
+    """The terms a run's env computes: those of weight not 0 and those its stages may weigh. Its
+    replay buffer holds 0 for every other term."""
+    return {k for k in REWARD_KEYS if getattr(cfg.reward, k) != 0.0} | set(reweighted_terms(cfg))
+
+
 class FeatureReader(BaseInfoDictReader):
     """TorchRL's reader of the env's ``info["reward_unweighted"]`` (a dict by weight key) into a
     nested TensorDict, ``(FEATURES, key)``, float64 (``GymWrapper.set_info_dict_reader``)."""

@@ -36,7 +36,7 @@ from pamrun.config import Config, ConfigError, to_object, without_hydra
 from pamrun.evaluation import board, figures
 from pamrun.evaluation.evaluator import TrainingEvaluator
 from pamrun.learning import checkpoints, networks
-from pamrun.learning.curriculum import FeatureReader, WalkCurriculum, reweighted_terms
+from pamrun.learning.curriculum import FeatureReader, WalkCurriculum, computed_terms, reweighted_terms
 from pamrun.runs import directory
 from pamrun.runs.directory import EVAL_FIELDS, CsvLog, EpisodeLog, RunFiles
 from pamrun.runs.files import console as make_console
@@ -199,16 +199,19 @@ def start_from(cfg: Config, learner: networks.Learner, buffer, console) -> None:
     except (RuntimeError, KeyError) as err:  # another algorithm's critics, or other critic sizes
         first = (str(err).strip().splitlines() or [""])[0][:160]
         raise SystemExit(f"pamrun: train.init_from: {path}: its networks do not fit algo.* ({first})") from None
-    record, source = state.get("buffer"), (state.get("config") or {}).get("reward", {})
+    record, config = state.get("buffer"), state.get("config") or {}
     if record is not None:
-        ours = {k: getattr(cfg.reward, k) for k in REWARD_KEYS}
+        source, ours = config.get("reward", {}), {k: getattr(cfg.reward, k) for k in REWARD_KEYS}
         differ = sorted(k for k in REWARD_KEYS if source.get(k, 0.0) != ours[k])
-        unrecorded = [k for k in reweighted_terms(cfg) if k not in source]  # terms added to pamrun since
+        run = path.parent.parent  # the run it was saved in, whose config says what its env computed
+        computed = (computed_terms(directory.saved_config(run)) if RunFiles(run).config.exists()
+                    else {k for k in REWARD_KEYS if source.get(k, 0.0) != 0.0})
+        uncarried = [k for k in reweighted_terms(cfg) if k not in computed]
         if differ:
             took += f"; not its replay buffer, whose rewards were summed with other weights ({', '.join(differ)})"
-        elif unrecorded:
-            took += (f"; not its replay buffer, whose transitions do not carry the terms this run's stages "
-                     f"weigh ({', '.join(unrecorded)}: added to pamrun after it was saved)")
+        elif uncarried:
+            took += (f"; not its replay buffer, whose transitions do not carry terms this run's stages weigh "
+                     f"({', '.join(uncarried)}: its run neither weighed them nor had them in its train.*_weights)")
         elif record["length"] > cfg.train.buffer_size:
             took += f"; not its replay buffer, of {record['length']} transitions (train.buffer_size {cfg.train.buffer_size})"
         else:
