@@ -205,3 +205,50 @@ def test_sole_tilt_of_known_corners():
     assert reward_mod.TERMS["kflat"](t) == pytest.approx(-0.2)
     t.contact = [True, True]
     assert reward_mod.TERMS["kflat"](t) == pytest.approx(-0.4)
+
+
+def test_landing_term_charges_the_feet_that_touch_down_and_slip_those_already_down():
+    """reward.kland: the horizontal speed over the step of a foot that lands in it (off the ground at
+    its start, on it at its end); kslip the same for a foot on the ground at both ends; a foot in the
+    air at the end counts in neither."""
+    from types import SimpleNamespace
+
+    env = SimpleNamespace(env_cfg=SimpleNamespace(control_dt_s=0.025))
+    before = np.zeros((2, 4, 3))
+    after = before.copy()
+    after[0, :, 0] += 0.02  # the right foot moves 2 cm forward in the step: 0.8 m/s
+    after[1, :, 1] += 0.01  # the left 1 cm sideways: 0.4 m/s
+
+    def step(contact_before, contact):
+        t = reward_mod.Transition(env=env, episode=None, torso=(), qpos=[], action=np.zeros(1), previous=np.zeros(1),
+                                  soles_before=before, soles=after, contact_before=contact_before, contact=contact,
+                                  forces_n=[0.0, 0.0])
+        return reward_mod.TERMS["kland"](t), reward_mod.TERMS["kslip"](t)
+
+    assert step([False, True], [True, True]) == pytest.approx((-0.8, -0.4))  # right lands, left slides
+    assert step([True, False], [True, True]) == pytest.approx((-0.4, -0.8))  # left lands, right slides
+    assert step([False, False], [False, True]) == pytest.approx((-0.4, 0.0))
+    assert step([True, True], [False, False]) == (0.0, 0.0)  # both lift off
+
+
+def test_a_robot_dropped_moving_forward_is_charged_for_its_landing():
+    """In the env: standing, no foot lands (kland 0); lifted 2 cm and thrown forward at 1 m/s, its
+    feet land in one step, moving, and that step alone is charged."""
+    import gymnasium as gym
+
+    env = gym.make("pamrun/PamWalker-v0", reward={"kland": 1.0}).unwrapped
+    env.reset(seed=0)
+    zero = np.zeros(env.action_space.shape)
+    env.step(zero)  # the reset pose has no contact force yet: the feet 'land' in the first step, settling
+    _, _, *_, info = env.step(zero)
+    assert info["reward_unweighted"]["kland"] == 0.0
+    env.data.qpos[2] += 0.02
+    env.data.qvel[:] = 0.0
+    env.data.qvel[0] = 1.0  # the free joint's forward velocity
+    landings = []
+    for _ in range(8):
+        _, _, *_, info = env.step(zero)
+        landings.append(info["reward_unweighted"]["kland"])
+    env.close()
+    charged = [v for v in landings if v != 0.0]
+    assert 1 <= len(charged) <= 2 and min(charged) < -0.5, landings

@@ -23,7 +23,8 @@ class RewardConfig:
     r = kvx Vx - ky y^2 - kz (z - z0)^2 - kv sum(a_prev^2) + kt Ts / Tf
           - kda sum((a_prev - a_prev2)^2) - kfall [fell] - kstop n_stop / n
           + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip - kair air - kstep steps
-          + kgait (1 - clock miss) - kflight [no foot down] - kflat tilt (the last ten: 0 in the thesis)
+          + kgait (1 - clock miss) - kflight [no foot down] - kflat tilt - kland landing
+          (the last eleven: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -46,6 +47,9 @@ class RewardConfig:
     # weight of the feet's side-to-side tilt: summed |tilt| [rad] of the feet on the ground at the step's
     # end (a foot on its sole's edge grips by two corners, and pivots and slides)
     kflat: float = 0.0
+    # weight of the landing feet's speed: summed horizontal speed [m/s] over the step of the feet that touch
+    # down in it (a foot landing still moving forward skids on into its stance)
+    kland: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):

@@ -105,14 +105,27 @@ def speed(t: Transition) -> float:
     return math.exp(-(((t.torso[6] - t.episode.target_speed_m_s) / t.env.env_cfg.speed_sigma_m_s) ** 2))
 
 
+def _ground_point_speeds(t: Transition, before: bool) -> float:
+    """The summed horizontal speed [m/s] over the step of the ground points of the feet on the ground
+    at its end and, at its start, on it (``before``) or off it."""
+    shift, total = ground_point_shift_m(t.soles_before, t.soles).tolist(), 0.0
+    for foot in (0, 1):
+        if t.contact[foot] and t.contact_before[foot] == before:
+            total += math.hypot(*shift[foot]) / t.env.env_cfg.control_dt_s
+    return total
+
+
 @term("kslip")
 def slip(t: Transition) -> float:
     """Minus the summed horizontal speed of the feet on the ground at both ends of the step [m/s]."""
-    shift, total = ground_point_shift_m(t.soles_before, t.soles).tolist(), 0.0
-    for foot in (0, 1):
-        if t.contact[foot] and t.contact_before[foot]:
-            total += math.hypot(*shift[foot]) / t.env.env_cfg.control_dt_s
-    return -total
+    return -_ground_point_speeds(t, before=True)
+
+
+@term("kland")
+def landing(t: Transition) -> float:
+    """Minus the summed horizontal speed over the step of the feet that touch down in it [m/s]: a
+    foot that lands still moving forward skids (kslip charges the steps after)."""
+    return -_ground_point_speeds(t, before=False)
 
 
 @term("kair")
