@@ -89,8 +89,9 @@ def milestones(run: Path) -> dict:
 def held_out_evaluation(run: Path) -> dict | None:
     """The run's best_eval.pt on pamrun eval's held-out seeds (its defaults), or None."""
     from pamrun.config import Config
+    from pamrun.evaluation.agents import load_agents
     from pamrun.evaluation.episodes import aggregate, evaluate_agents
-    from pamrun.evaluation.evaluate import held_out, load_agents
+    from pamrun.evaluation.ranking import held_out
     from pamrun.runs.directory import RunFiles
     from pamrun.runs.machine import usable_cores
 
