@@ -161,3 +161,18 @@ def test_counted_progress_of_pamrun_eval(terminal):
     text = re.sub(r"\x1b\[[0-9;?]*[a-zA-Z]", "", out.getvalue())
     assert "episodes 3/10 (30.0%)  eta 14s" in text
     assert ("episodes 1/10 (10.0%)  eta 18s" in text) == (not terminal)
+
+
+def test_the_run_header_names_each_stage_s_weights(tmp_path):
+    """The table a training opens with lists the env's weights, then those of the walking stage
+    ('once it stands') and of the gait stage ('once every episode walks')."""
+    from pamrun.config import Config
+    from pamrun.training.console import header_table
+
+    cfg = Config()
+    cfg.train.walk_weights, cfg.train.gait_weights = {"kspeed": 4.0}, {"kflight": 20.0}
+    out, text = console(False)
+    out.print(header_table(cfg, tmp_path))
+    line = " ".join(text.getvalue().split())
+    assert "kflight 0," in line and "kspeed 4 once it stands" in line
+    assert "kflight 20 once every episode walks" in line
