@@ -16,8 +16,17 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 register_configs()
 
 
-def compose_config(*overrides: str):
-    """The DictConfig `pamrun <cmd> overrides...` would get (no hydra node)."""
+# The recipe a test's config builds on unless it names one: experiment=walk, the plain stand-then-walk
+# recipe. `pamrun train`'s default (experiment=gait) adds randomised episodes, mirroring, selection
+# under perturbation and two more curriculum stages, which the tests of those features ask for by name.
+TEST_RECIPE = "experiment=walk"
+
+
+def compose_config(*overrides: str, recipe: str | None = TEST_RECIPE):
+    """The DictConfig `pamrun <cmd> overrides...` would get (no hydra node), on ``recipe`` unless an
+    override names an experiment (``recipe=None``: pamrun's own default)."""
+    if recipe and not any(o.lstrip("+~").startswith("experiment=") for o in overrides):
+        overrides = (recipe, *overrides)
     with initialize_config_dir(str(CONF_DIR), version_base="1.3"):
         return compose("config", overrides=list(overrides))
 

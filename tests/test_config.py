@@ -149,12 +149,18 @@ def test_presets_hold_only_what_they_change():
 
 
 def test_the_default_recipe_walks_and_the_thesis_is_one_word_away():
-    """``pamrun train`` with no arguments runs the walking recipe (experiment=walk);
-    ``experiment=thesis`` is the thesis' (muscle=thesis, DDPG, Tables 9.1-9.4); a group on the
-    command line wins over the experiment's choice."""
-    walk = to_object(compose_config())
-    assert (walk.algo.name, walk.algo.critic, walk.reward.kt, walk.train.walk_kvx) == ("td3", "concat", 400.0, 4.0)
-    assert walk.train.stop_on_walk and walk.env.reset_noise_rad == 0.02 and walk.muscle.size == "DMSP-40"
+    """``pamrun train`` with no arguments runs the gait recipe (experiment=gait: walker's recipe plus a
+    gait stage); experiment=walk and experiment=thesis stay one word away; a group on the command line
+    wins over the experiment's choice."""
+    gait, walker = to_object(compose_config(recipe=None)), to_object(compose_config("experiment=walker"))
+    assert (gait.algo.name, gait.algo.critic, gait.reward.kt, gait.algo.mirror_loss) == ("td3", "concat", 400.0, 4.0)
+    assert gait.train.gait_weights["kflight"] > gait.train.walk_weights["kflight"] > 0
+    assert gait.train.walk_weights["kspeed"] == walker.train.walk_weights["kspeed"] > 0  # walker's, extended
+    assert gait.train.randomize == walker.train.randomize and gait.train.mirror and not gait.train.stop_on_walk
+    assert gait.env.gait_period_s > walker.env.gait_period_s > 0 and gait.env.stance_knee_deg > 0
+    assert gait.eval.rank_by[:2] == ["walk_pass_rate", "walk_targets_met"] and gait.muscle.size == "DMSP-40"
+    walk = to_object(compose_config("experiment=walk"))
+    assert (walk.algo.name, walk.train.walk_kvx, walk.train.stop_on_walk, walk.env.gait_period_s) == ("td3", 4.0, True, 0.0)
     thesis = to_object(compose_config("experiment=thesis"))
     assert thesis.algo == AlgoConfig() and thesis.train == TrainConfig() and thesis.reward == RewardConfig()
     assert (thesis.muscle.size, thesis.muscle.coupling, thesis.algo.name) == ("DMSP-20", "thesis", "ddpg")
@@ -175,10 +181,10 @@ def test_every_config_field_has_a_doc():
 
 
 def test_walk_preset_composes_across_groups():
-    """train=walk (a _global_ preset) sets the algorithm, reward and env as well as the budget."""
-    cfg = to_object(compose_config("train=walk"))
+    """experiment=walk (a _global_ preset) sets the algorithm, reward and env, and train=walk the budget."""
+    cfg = to_object(compose_config("experiment=walk"))
     assert (cfg.algo.name, cfg.algo.critic, cfg.algo.actor_lr) == ("td3", "concat", 1e-4)
     assert cfg.algo.actor_update_every == 2  # the rest of algo=td3 comes with it
     assert cfg.reward.kt == 400.0 and cfg.env.reset_noise_rad == 0.02
     assert cfg.train.stop_on_walk and cfg.train.eval_every_frames == 10_000 and cfg.train.actor_start_frames == 20_000
-    assert to_object(compose_config("train=walk", "algo=sac")).algo.name == "sac"  # the command line still wins
+    assert to_object(compose_config("experiment=walk", "algo=sac")).algo.name == "sac"  # the command line still wins

@@ -166,7 +166,7 @@ def test_video_frame_strip_and_gif(tmp_path):
 def trained_run(tmp_path_factory):
     """A tiny DDPG training that saves a few agents (every episode qualifies)."""
     run_dir = tmp_path_factory.mktemp("eval") / "run"
-    proc = run_pamrun("train", "train=smoke", "train.max_frames=600", "train.init_random_frames=200",
+    proc = run_pamrun("train", "experiment=walk", "train=smoke", "train.max_frames=600", "train.init_random_frames=200",
                       "train.updates_per_frame=0.25", "train.save_threshold=-1e9", "train.keep_saved=2", "seed=2",
                       f"hydra.run.dir={run_dir}")
     assert proc.returncode == 0, proc.stderr[-3000:]

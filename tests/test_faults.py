@@ -25,7 +25,7 @@ from pamrun.config import AlgoConfig
 from pamrun.learning import networks
 from tests.conftest import run_pamrun
 
-SMOKE = ["train=smoke", "algo=td3", "train.init_random_frames=200", "train.updates_per_frame=0.25", "seed=4"]
+SMOKE = ["experiment=walk", "train=smoke", "algo=td3", "train.init_random_frames=200", "train.updates_per_frame=0.25", "seed=4"]
 
 
 def _start(run_dir: Path, *extra: str, sigint_ignored: bool = False) -> subprocess.Popen:

@@ -20,7 +20,7 @@ from pamrun.sweep.grid import collect_jobs, compare, group_key, mean_ci
 from pamrun.sweep.overrides import sweep_dir_for, swept_keys
 from tests.conftest import run_pamrun
 
-TINY = ["train=smoke", "train.max_frames=400", "train.init_random_frames=200", "train.updates_per_frame=0.25",
+TINY = ["experiment=walk", "train=smoke", "train.max_frames=400", "train.init_random_frames=200", "train.updates_per_frame=0.25",
         "train.save_threshold=-80", "eval.episodes=2", "eval.episode_s=2", "eval.walk_duration_s=2"]
 
 
@@ -154,7 +154,7 @@ def test_a_failing_job_is_recorded_and_the_others_finish(tmp_path):
 def test_an_interrupted_sweep_resumes_its_jobs(tmp_path):
     """SIGKILL a sweep mid-training; the same command resumes the job from its last checkpoint."""
     sweep_dir = tmp_path / "killed"
-    args = ["sweep", "-m", "seed=3", "train=smoke", "train.max_frames=1400", "train.init_random_frames=200",
+    args = ["sweep", "-m", "seed=3", "experiment=walk", "train=smoke", "train.max_frames=1400", "train.init_random_frames=200",
             "train.updates_per_frame=0.25", "train.checkpoint_every_frames=200", "eval.episodes=1",
             "eval.episode_s=1", "eval.walk_duration_s=1", f"hydra.sweep.dir={sweep_dir}"]
     proc = subprocess.Popen([sys.executable, "-m", "pamrun.cli", *args], stdout=subprocess.DEVNULL,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import csv
 import json
+import shutil
 
 import pytest
 import torch
@@ -12,7 +13,7 @@ import torch
 from pamrun.config import to_object
 from tests.conftest import compose_config, run_pamrun
 
-TINY = ["train=smoke", "train.max_frames=600", "train.init_random_frames=200", "train.updates_per_frame=0.25",
+TINY = ["experiment=walk", "train=smoke", "train.max_frames=600", "train.init_random_frames=200", "train.updates_per_frame=0.25",
         "train.checkpoint_every_frames=200", "seed=1"]
 
 
@@ -203,6 +204,25 @@ def test_evaluation_is_deterministic_and_matches_pamrun_eval(tmp_path, cfg):
 
 
 @pytest.mark.slow
+def test_the_default_recipe_runs_end_to_end(tmp_path):
+    """``pamrun train train=smoke`` on the default recipe (experiment=gait): randomised episodes,
+    mirroring, the three stages announced, evaluations, a finished run that says which recipe it ran."""
+    from pamrun.runs.directory import saved_config
+
+    run_dir = tmp_path / "default"
+    proc = run_pamrun("train", "train=smoke", "seed=1", f"hydra.run.dir={run_dir}")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = " ".join(proc.stdout.replace("│", " ").split())  # the header table's cells, unwrapped
+    assert "kflight 2 once it stands" in out and "kflight 20 once every episode walks" in out
+    run = json.loads((run_dir / "run.json").read_text())
+    assert run["status"] == "max_frames" and run["frames"] == 1200
+    assert len(list(csv.DictReader((run_dir / "evals.csv").open()))) == 3
+    saved = saved_config(run_dir)
+    assert saved.algo.mirror_loss == 4.0 and saved.train.mirror and saved.train.gait_weights == {"kflight": 20.0}
+    assert saved.eval.rank_by[1] == "walk_targets_met" and (run_dir / "checkpoints" / "best_eval.pt").exists()
+
+
+@pytest.mark.slow
 def test_stop_on_walk(tmp_path):
     """With a walk test an untrained (standing) actor passes, the run stops at its first evaluation."""
     run_dir = tmp_path / "walked"
@@ -214,7 +234,7 @@ def test_stop_on_walk(tmp_path):
     rows = list(csv.DictReader((run_dir / "evals.csv").open()))
     assert run["status"] == "walked" and rows[-1]["walk_pass_rate"] == "1.0"
     assert run["frames"] == int(rows[-1]["frames"]) < 2000
-    proc = run_pamrun("train", "train.stop_on_walk=true", "train.eval_every_frames=0", f"hydra.run.dir={tmp_path / 'x'}")
+    proc = run_pamrun("train", "experiment=walk", "train.stop_on_walk=true", "train.eval_every_frames=0", f"hydra.run.dir={tmp_path / 'x'}")
     assert proc.returncode != 0 and "train.stop_on_walk" in proc.stderr + proc.stdout
 
 
@@ -305,7 +325,7 @@ def test_walk_curriculum_in_a_run(tmp_path, capsys):
     assert [(e.step, e.value) for e in events.Scalars("curriculum/kvx")] == [(first, 4.0)]
     train_here(run_dir, f"resume={run_dir}", "train.max_frames=1200")  # the stage carries over a resume
     assert f"Walking stage of the curriculum since {first} frames" in " ".join(capsys.readouterr().out.split())
-    proc = run_pamrun("train", "train.walk_kvx=4", "train.eval_every_frames=0", "train.stop_on_walk=false",
+    proc = run_pamrun("train", "experiment=walk", "train.walk_kvx=4", "train.eval_every_frames=0", "train.stop_on_walk=false",
                       f"hydra.run.dir={tmp_path / 'x'}")
     assert proc.returncode != 0 and "train.walk_kvx" in proc.stderr + proc.stdout
 
@@ -377,6 +397,13 @@ def test_a_run_started_from_a_trained_agent_begins_with_its_networks(tmp_path):
     assert train_here(g_dir, *TINY, *still, "+train.walk_weights.kslip=2",
                       f"train.init_from={f_dir / 'checkpoints' / 'last.pt'}") == "max_frames"
     assert torch.load(g_dir / "checkpoints" / "last.pt", weights_only=True)["buffer"]["length"] == 800
+    assert "kslip" not in a["buffer"]["terms"]  # last.pt records the terms its transitions carry
+    assert "kslip" in torch.load(f_dir / "checkpoints" / "last.pt", weights_only=True)["buffer"]["terms"]
+    moved = tmp_path / "moved"  # a last.pt and its buffer outside their run directory: the record still says
+    shutil.copytree(f_dir / "checkpoints", moved)
+    assert train_here(tmp_path / "from_moved", *TINY, *still, "+train.walk_weights.kslip=2",
+                      f"train.init_from={moved / 'last.pt'}") == "max_frames"
+    assert torch.load(tmp_path / "from_moved" / "checkpoints" / "last.pt", weights_only=True)["buffer"]["length"] == 800
 
 
 @pytest.mark.slow

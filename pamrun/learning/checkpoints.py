@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from pamrun.config import upgrade_saved_config
-from pamrun.learning.curriculum import FEATURES
+from pamrun.learning.curriculum import FEATURES, computed_terms
 from pamrun.runs.directory import (
     AGENT_GLOB,
     BEST_EVAL,
@@ -251,8 +251,8 @@ def save_last(ckpt_dir: Path, cfg, learner, buffer, counters: dict) -> None:
     The replay buffer goes first, into its own ``buffer-<frames>/`` folder; then ``last.pt``,
     atomically, naming that folder with the size and CRC-32 of each of its files and the
     buffer's length; then older buffer folders go. A crash at any moment leaves a
-    ``last.pt`` whose buffer is complete on disk. Plain data only: loadable with
-    ``weights_only=True``."""
+    ``last.pt`` whose buffer is complete on disk, and the reward terms its transitions carry (the
+    others are stored as 0). Plain data only: loadable with ``weights_only=True``."""
 
 
     needed = _checkpoint_bytes(learner, buffer)
@@ -270,7 +270,8 @@ def save_last(ckpt_dir: Path, cfg, learner, buffer, counters: dict) -> None:
     actor = agent_record(learner.policy_state(), cfg,
                          {"frames": counters["frames"], "episode": counters["episodes"]})
     atomic_save({**actor, **learner.state_dict(), "counters": dict(counters), "rng": rng_states(),
-                 "buffer": {"dir": name, "length": len(buffer), "files": file_fingerprints(ckpt_dir / name)}},
+                 "buffer": {"dir": name, "length": len(buffer), "files": file_fingerprints(ckpt_dir / name),
+                            "terms": sorted(computed_terms(cfg))}},  # the reward terms its transitions carry
                 ckpt_dir / LAST)
     for old in ckpt_dir.glob("buffer*"):
         if old.name != name:

@@ -203,9 +203,7 @@ def start_from(cfg: Config, learner: networks.Learner, buffer, console) -> None:
     if record is not None:
         source, ours = config.get("reward", {}), {k: getattr(cfg.reward, k) for k in REWARD_KEYS}
         differ = sorted(k for k in REWARD_KEYS if source.get(k, 0.0) != ours[k])
-        run = path.parent.parent  # the run it was saved in, whose config says what its env computed
-        computed = (computed_terms(directory.saved_config(run)) if RunFiles(run).config.exists()
-                    else {k for k in REWARD_KEYS if source.get(k, 0.0) != 0.0})
+        computed = set(record["terms"]) if "terms" in record else _computed_before_terms_were_saved(path, source)
         uncarried = [k for k in reweighted_terms(cfg) if k not in computed]
         if differ:
             took += f"; not its replay buffer, whose rewards were summed with other weights ({', '.join(differ)})"
@@ -221,6 +219,15 @@ def start_from(cfg: Config, learner: networks.Learner, buffer, console) -> None:
                 raise SystemExit(f"pamrun: train.init_from: {err}") from None
             took += f", and its {len(buffer)} replayed transitions"
     console.print(f"Starting from {took} of {path}.", soft_wrap=True)
+
+
+def _computed_before_terms_were_saved(path: Path, source_weights: dict) -> set[str]:
+    """The reward terms a ``last.pt`` saved before it recorded them carries: those its run's
+    config computed, or outside its run directory those of weight not 0."""
+    run = path.parent.parent
+    if RunFiles(run).config.exists():
+        return computed_terms(directory.saved_config(run))
+    return {k for k in REWARD_KEYS if source_weights.get(k, 0.0) != 0.0}
 
 
 def main(dcfg) -> None:
