@@ -153,7 +153,7 @@ def fmt(seconds: float | None, frames: int | None) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--preset", default="walk", help="experiment=<preset>")
+    parser.add_argument("--preset", default="gait", help="experiment=<preset> (gait: pamrun train's default)")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
     parser.add_argument("--minutes", type=float, default=120.0, help="wall-clock budget per seed")
     parser.add_argument("--root", type=Path, default=Path("outputs/time_to_walk"))
