@@ -189,7 +189,9 @@ def test_eval_of_a_run_directory_end_to_end(trained_run, tmp_path):
     assert board["seeds"] == [1000, 1001] and board["errors"] == [] and board["held_out"] is True
     rows = list(csv.DictReader((out / "leaderboard.csv").open()))
     assert [r["agent"] for r in rows] == [a["agent"] for a in board["agents"]]
-    keys = [(-a["walk_pass_rate"], -a["stand_rate"], -a["distance_mean"]) for a in board["agents"]]
+    # ranked by the default recipe's eval.rank_by: walk passes, then the walk's targets met, then distance
+    assert board["rank_by"] == ["walk_pass_rate", "walk_targets_met", "distance_mean"]
+    keys = [(-a["walk_pass_rate"], -a["walk_targets_met"], -a["distance_mean"]) for a in board["agents"]]
     assert keys == sorted(keys)
     # best.pt is the leaderboard's first agent, loadable without executing code.
     best = torch.load(out / "best.pt", weights_only=True)
