@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from pamrun.config import ConfigError, to_object
-from pamrun.task.clock import foot_miss, swing_weights
+from pamrun.task.clock import STANCE_WANTS, SWING_WANTS, foot_miss, foot_wants, swing_weights
 from pamrun.task.env import PamWalkerEnv
 from pamrun.task.symmetry import action_map, mirror_state, observation_map
 from tests.conftest import compose_config
@@ -264,6 +264,21 @@ def test_a_foot_misses_the_larger_of_its_wants_and_a_bent_stance_knee_is_one():
     assert foot_miss(1.0, 0.0, 0.0, 0.05, rad(45), knees) == 0.0  # swinging: the stance demand is off
     assert foot_miss(1.0, 0.0, 0.0, 0.05, rad(10), knees) == pytest.approx(0.5)  # half the swing bend
     assert foot_miss(0.5, 0.0, 0.0, 0.05, rad(10), knees) == pytest.approx(0.5 * 0.5 + 0.5 * 1.0)
+
+
+def test_a_foots_wants_are_named_and_only_those_its_options_ask_for():
+    """foot_wants, what reward_anatomy splits kgait's miss by: the wants of a foot whose env options
+    are off are left out, each miss is in [0, 1], and foot_miss is the larger in each phase."""
+    off = to_object(compose_config("env.gait_period_s=0.8")).env
+    every = to_object(compose_config("env.gait_period_s=0.8", "env.stance_knee_deg=30", "env.swing_knee_deg=20",
+                                     "env.swing_clearance_m=0.05")).env
+    assert set(foot_wants(0.3, 0.2, 0.01, 0.1, off)) == {"swing_load", "stance_speed", "stance_load"}
+    wants = foot_wants(0.3, 0.2, 0.01, math.radians(10), every)
+    assert set(wants) == set(SWING_WANTS) | set(STANCE_WANTS)
+    assert wants == pytest.approx({"swing_load": 0.3, "swing_lift": 0.8, "swing_knee": 0.5,
+                                   "stance_speed": 0.2, "stance_load": 0.4, "stance_knee": 1 / 3})
+    assert foot_miss(0.25, 0.3, 0.2, 0.01, math.radians(10), every) == pytest.approx(0.25 * 0.8 + 0.75 * 0.4)
+    assert all(0.0 <= w <= 1.0 for w in foot_wants(3.0, 5.0, -1.0, math.radians(120), every).values())
 
 
 def test_kgait_charges_bent_knees_on_the_ground_only_where_the_clock_stands_them():

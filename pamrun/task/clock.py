@@ -28,19 +28,44 @@ def swing_weights(phase: float, swing_share: float) -> tuple[float, float]:
                  for foot in (0, 1))
 
 
+SWING_WANTS = ("swing_load", "swing_lift", "swing_knee")  # a swinging foot's wants, as misses
+STANCE_WANTS = ("stance_speed", "stance_load", "stance_knee")  # ... and a standing one's
+
+
+def foot_wants(share: float, speed_m_s: float, lift_m: float, knee_rad: float, env: EnvConfig) -> dict[str, float]:
+    """One foot's miss of each of its wants, in [0, 1], by name (those whose env option is off left
+    out): in swing, carrying (its ground force as a share of the weight), not lifted (its lowest
+    point's height under ``env.swing_clearance_m``) and not bent (its knee's flexion, 0 straight,
+    under ``env.swing_knee_deg``); in stance, moving (its sole's speed), not carrying (1 - 2 f)
+    and bent (its knee's flexion as a share of ``env.stance_knee_deg``)."""
+    wants = {"swing_load": min(share, 1.0), "stance_speed": min(speed_m_s, 1.0),
+             "stance_load": 1.0 - min(2.0 * share, 1.0)}
+    if env.swing_clearance_m:
+        wants["swing_lift"] = 1.0 - min(max(lift_m, 0.0) / env.swing_clearance_m, 1.0)
+    if env.swing_knee_deg:
+        wants["swing_knee"] = 1.0 - min(max(knee_rad, 0.0) / math.radians(env.swing_knee_deg), 1.0)
+    if env.stance_knee_deg:
+        wants["stance_knee"] = min(max(knee_rad, 0.0) / math.radians(env.stance_knee_deg), 1.0)
+    return wants
+
+
 def foot_miss(swing: float, share: float, speed_m_s: float, lift_m: float, knee_rad: float, env: EnvConfig) -> float:
-    """One foot's miss of the clock, in [0, 1]: swing weight s, ground force as a share of the
-    weight, sole speed, lowest point's height above the floor and the leg's knee flexion (0
-    straight). s max(f, c, k) + (1 - s) max(u, 1 - min(2 f, 1)) (with the stance knee's share)."""
-    stance = max(min(speed_m_s, 1.0), 1.0 - min(2.0 * share, 1.0))  # moving, or not carrying
-    swing_miss = min(share, 1.0)  # carrying
-    if env.swing_clearance_m:  # not lifted
-        swing_miss = max(swing_miss, 1.0 - min(max(lift_m, 0.0) / env.swing_clearance_m, 1.0))
-    if env.swing_knee_deg:  # not bent
-        swing_miss = max(swing_miss, 1.0 - min(max(knee_rad, 0.0) / math.radians(env.swing_knee_deg), 1.0))
-    if env.stance_knee_deg:  # bent while it should carry
-        stance = max(stance, min(max(knee_rad, 0.0) / math.radians(env.stance_knee_deg), 1.0))
-    return swing * swing_miss + (1.0 - swing) * stance
+    """One foot's miss of the clock, in [0, 1], at swing weight s: s times the largest of its swing
+    wants' misses plus (1 - s) times the largest of its stance wants' (:func:`foot_wants`)."""
+    wants = foot_wants(share, speed_m_s, lift_m, knee_rad, env)
+    return (swing * max(wants[k] for k in SWING_WANTS if k in wants)
+            + (1.0 - swing) * max(wants[k] for k in STANCE_WANTS if k in wants))
+
+
+def foot_motion(soles_before: np.ndarray, soles: np.ndarray, sole_radius_m: float, control_dt_s: float,
+                ground_m: list[float] | None = None) -> tuple[list[float], list[float]]:
+    """Each foot's sole speed [m/s] over a control step (its contact points' mean, horizontal) and
+    its lowest point's height [m] above the floor (``ground_m``: the ground under it) after it."""
+    moved = (soles[:, :, :2].mean(axis=1) - soles_before[:, :, :2].mean(axis=1)).tolist()
+    lifts = (soles[:, :, 2].min(axis=1) - sole_radius_m).tolist()
+    if ground_m is not None:
+        lifts = [lift - ground for lift, ground in zip(lifts, ground_m)]
+    return [math.hypot(*m) / control_dt_s for m in moved], lifts
 
 
 def followed(phase: float, soles_before: np.ndarray, soles: np.ndarray, shares: list[float], knees: list[float],
@@ -50,14 +75,10 @@ def followed(phase: float, soles_before: np.ndarray, soles: np.ndarray, shares: 
     contact points (2, k, 3) before and after it, their ground forces as shares of the weight
     and the legs' knee flexions after it (``stopped``: the clock stands still, both feet asked
     down; ``ground_m``: the ground's height under each foot, on terrain; None: the floor, 0)."""
-    moved = (soles[:, :, :2].mean(axis=1) - soles_before[:, :, :2].mean(axis=1)).tolist()
-    lifts = (soles[:, :, 2].min(axis=1) - sole_radius_m).tolist()
-    if ground_m is not None:
-        lifts = [lift - ground for lift, ground in zip(lifts, ground_m)]
+    speeds, lifts = foot_motion(soles_before, soles, sole_radius_m, env.control_dt_s, ground_m)
     gait = 0.0
     for foot, swing in enumerate((0.0, 0.0) if stopped else swing_weights(phase, env.swing_share)):
-        speed = math.hypot(*moved[foot]) / env.control_dt_s
-        gait -= 0.5 * foot_miss(swing, shares[foot], speed, lifts[foot], knees[foot], env)
+        gait -= 0.5 * foot_miss(swing, shares[foot], speeds[foot], lifts[foot], knees[foot], env)
     return gait + 1.0
 
 
