@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from dataclasses import fields
 
+import mujoco
 import numpy as np
 import pytest
 import torch
@@ -252,3 +253,33 @@ def test_a_robot_dropped_moving_forward_is_charged_for_its_landing():
     env.close()
     charged = [v for v in landings if v != 0.0]
     assert 1 <= len(charged) <= 2 and min(charged) < -0.5, landings
+
+
+def test_upright_term_charges_the_torsos_tilt_and_not_its_heading():
+    """reward.kupright: -(roll^2 + pitch^2) of the torso after the step, read from the env's own torso
+    values; near 0 standing upright, -(0.2^2) with the robot lifted and pitched 0.2 rad, and the same
+    turned 1 rad about the vertical."""
+    import gymnasium as gym
+
+    env = gym.make("pamrun/PamWalker-v0", reward={"kupright": 3.0}).unwrapped
+    env.reset(seed=0)
+    zero = np.zeros(env.action_space.shape)
+    _, _, *_, info = env.step(zero)
+    standing = info["reward_unweighted"]["kupright"]
+    assert -math.radians(2.0) ** 2 < standing <= 0.0 and info["reward_terms"]["kupright"] == 3.0 * standing
+
+    def tilted(yaw: float) -> float:
+        env.reset(seed=0)
+        half_pitch, half_yaw = 0.1, yaw / 2  # a quaternion turning 0.2 rad about y, then yaw about z
+        qy = np.array([math.cos(half_pitch), 0.0, math.sin(half_pitch), 0.0])
+        qz = np.array([math.cos(half_yaw), 0.0, 0.0, math.sin(half_yaw)])
+        quat = np.empty(4)
+        mujoco.mju_mulQuat(quat, qz, qy)
+        env.data.qpos[2] += 1.0  # in the air, so that the tilt holds over the step
+        env.data.qpos[3:7] = quat
+        env.data.qvel[:] = 0.0
+        return env.step(zero)[4]["reward_unweighted"]["kupright"]
+
+    assert tilted(0.0) == pytest.approx(-0.2 ** 2, abs=2e-3)
+    assert tilted(1.0) == pytest.approx(tilted(0.0), abs=1e-6)
+    env.close()

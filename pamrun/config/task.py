@@ -24,7 +24,8 @@ class RewardConfig:
           - kda sum((a_prev - a_prev2)^2) - kfall [fell] - kstop n_stop / n
           + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip - kair air - kstep steps
           + kgait (1 - clock miss) - kflight [no foot down] - kflat tilt - kland landing
-          (the last eleven: 0 in the thesis)
+          - kupright (roll^2 + pitch^2)
+          (the last twelve: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -50,6 +51,9 @@ class RewardConfig:
     # weight of the landing feet's speed: summed horizontal speed [m/s] over the step of the feet that touch
     # down in it (a foot landing still moving forward skids on into its stance)
     kland: float = 0.0
+    # weight of the torso's squared tilt from upright, roll^2 + pitch^2 [rad^2] (a walker's trunk stays
+    # within a few degrees of upright; a torso leaning forward walks on short, quick steps)
+    kupright: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):

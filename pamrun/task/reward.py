@@ -173,6 +173,12 @@ def sole_edge(t: Transition) -> float:
     return -sum(abs(a) for a, down in zip(tilt, t.contact) if down)
 
 
+@term("kupright")
+def upright(t: Transition) -> float:
+    """Minus the torso's squared tilt from upright, roll^2 + pitch^2 [rad^2]; its heading (yaw) is free."""
+    return -(t.torso[3] ** 2 + t.torso[4] ** 2)
+
+
 def check_terms(keys: Iterable[str] = REWARD_KEYS) -> None:
     """Every weight has a term and every term a weight; ValueError naming the odd ones out."""
     keys = tuple(keys)
