@@ -87,7 +87,8 @@ def print_wants(anatomy: Anatomy) -> None:
     """kgait's miss split by want, in the clock's swing and in its stance."""
     seconds = anatomy.steps * anatomy.control_dt_s
     print(f"\nthe clock: {anatomy.clock_steps_per_s:.2f} steps/s asked; the feet touch down "
-          f"{anatomy.touchdowns / seconds:.2f} times a second")
+          f"{anatomy.touchdowns / seconds:.2f} times a second (the env's touchdowns, kstep's: a foot that unloads "
+          f"below 5 % of the weight for a control step lands again)")
     for phase, names, in_phase in (("swing", clock.SWING_WANTS, lambda s: s > 0.5),
                                    ("stance", clock.STANCE_WANTS, lambda s: s <= 0.5)):
         rows = [wants for swing, wants in anatomy.wants if in_phase(swing)]

@@ -376,6 +376,17 @@ def tilted_soles(n: int, roll_rad: float, heading_rad: float = 0.0, pitch_rad: f
     return np.broadcast_to(foot, (n, 2, 4, 3)).copy()
 
 
+def test_torso_pitch_is_its_mean_after_the_first_second():
+    """torso_pitch_deg: the torso's pitch averaged over the rows after the first second (the start
+    left out), in degrees; NaN for an episode recorded without the torso's orientation."""
+    n = 80  # 2 s
+    rpy = np.zeros((n, 3))
+    rpy[:, 1] = np.where(np.arange(1, n + 1) * DT > 1.0 + 1e-9, math.radians(10.0), math.radians(40.0))
+    rpy[:, 0], rpy[:, 2] = 0.3, -1.0  # roll and heading do not count
+    assert episode_metrics(still(n, torso_rpy_rad=rpy), spec())["torso_pitch_deg"] == pytest.approx(10.0)
+    assert math.isnan(episode_metrics(still(n), spec())["torso_pitch_deg"])
+
+
 def test_sole_tilt_is_the_side_to_side_angle_of_a_foot_on_the_ground():
     """A sole rolled 10 deg onto its edge reads 10 deg whatever its heading and its pitch (a foot
     rolling heel to toe is not on its edge); flat, 0; a tilted foot off the ground is not counted;

@@ -268,7 +268,7 @@ def test_upright_term_charges_the_torsos_tilt_and_not_its_heading():
     standing = info["reward_unweighted"]["kupright"]
     assert -math.radians(2.0) ** 2 < standing <= 0.0 and info["reward_terms"]["kupright"] == 3.0 * standing
 
-    def tilted(yaw: float) -> float:
+    def tilted(yaw: float) -> dict:
         env.reset(seed=0)
         half_pitch, half_yaw = 0.1, yaw / 2  # a quaternion turning 0.2 rad about y, then yaw about z
         qy = np.array([math.cos(half_pitch), 0.0, math.sin(half_pitch), 0.0])
@@ -278,8 +278,14 @@ def test_upright_term_charges_the_torsos_tilt_and_not_its_heading():
         env.data.qpos[2] += 1.0  # in the air, so that the tilt holds over the step
         env.data.qpos[3:7] = quat
         env.data.qvel[:] = 0.0
-        return env.step(zero)[4]["reward_unweighted"]["kupright"]
+        return env.step(zero)[4]
 
-    assert tilted(0.0) == pytest.approx(-0.2 ** 2, abs=2e-3)
-    assert tilted(1.0) == pytest.approx(tilted(0.0), abs=1e-6)
+    info = tilted(0.0)
+    assert info["reward_unweighted"]["kupright"] == pytest.approx(-0.2 ** 2, abs=2e-3)
+    # + pitch leans forward: the torso's up axis tips toward +x, and info reports it (torso_pitch_deg's)
+    torso = mujoco.mj_name2id(env.model, mujoco.mjtObj.mjOBJ_BODY, "torso")
+    assert env.data.xmat[torso].reshape(3, 3)[0, 2] > 0.15
+    assert info["torso_rpy_rad"][1] == pytest.approx(0.2, abs=2e-3)
+    turned = tilted(1.0)["reward_unweighted"]["kupright"]
+    assert turned == pytest.approx(tilted(0.0)["reward_unweighted"]["kupright"], abs=1e-6)
     env.close()

@@ -55,11 +55,12 @@ def agent_env(agent: Agent, cfg) -> EnvSpec:
     return EnvSpec.from_dict(own, base=EnvSpec.from_config(cfg), env=eval_env_options(cfg.eval))
 
 
-# What run_episode records per control step (pamrun.evaluation.metrics reads them): torso position, joint
+# What run_episode records per control step (pamrun.evaluation.metrics reads them): torso position and
+# roll, pitch, yaw, joint
 # angles, velocities and muscle torques (10), pressures and contractions of the 20 muscles, the
 # feet's normal forces (2) and contact spheres' positions (2, 4, 3), the action, and the commanded
 # speed v* (pamrun.evaluation.tracking reads it).
-STEP_KEYS = ("x_m", "y_m", "z_m", "joint_angle_rad", "joint_velocity_rad_s", "joint_torque_nm", "pressure_kpa",
+STEP_KEYS = ("x_m", "y_m", "z_m", "torso_rpy_rad", "joint_angle_rad", "joint_velocity_rad_s", "joint_torque_nm", "pressure_kpa",
              "contraction_pct", "foot_force_n", "sole_xyz_m", "action", "target_speed_m_s")
 
 
@@ -91,6 +92,7 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
         max_y = max(max_y, abs(float(info["y"])))
         physics_error |= bool(info["physics_error"])
         for key, value in (("x_m", info["x"]), ("y_m", info["y"]), ("z_m", info["z"]),
+                           ("torso_rpy_rad", info["torso_rpy_rad"]),
                            ("joint_angle_rad", env.data.qpos[qpos]), ("joint_velocity_rad_s", env.data.qvel[qvel]),
                            ("joint_torque_nm", info["joint_torque_nm"]), ("pressure_kpa", info["pressure_kpa"].ravel()),
                            ("contraction_pct", info["contraction_pct"].ravel()), ("foot_force_n", info["foot_force_n"]),

@@ -124,6 +124,7 @@ GAIT_METRICS = (
     "swing_clearance_m",
     "foot_slip_m_s",
     "sole_tilt_deg",
+    "torso_pitch_deg",
     "cost_of_transport",
     "air_nl",
     "air_nl_per_m",
@@ -293,6 +294,16 @@ def sole_tilt_deg(steps: dict, contact: np.ndarray) -> float:
     return float(np.degrees(np.abs(sole_tilt_rad(points))[contact]).mean())
 
 
+def torso_pitch_deg(steps: dict) -> float:
+    """Mean pitch of the torso [deg] after the first ``SETTLE_S``, + leaning forward (NaN without
+    such a row, or for an episode recorded without the torso's orientation)."""
+    if "torso_rpy_rad" not in steps:
+        return math.nan
+    late = np.asarray(steps["t_s"], float) > SETTLE_S + 1e-9
+    pitch = np.asarray(steps["torso_rpy_rad"], float).reshape(-1, 3)[late, 1]
+    return float(np.degrees(pitch).mean()) if len(pitch) else math.nan
+
+
 def support_shares(steps: dict, contact: np.ndarray) -> tuple[float, float]:
     """Shares of the rows after the first ``SETTLE_S`` with both feet in contact and with neither
     (NaN, NaN when the episode is no longer)."""
@@ -409,6 +420,7 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
     out["swing_clearance_m"] = swing_clearance_m(steps, events)
     out["foot_slip_m_s"] = foot_slip_m_s(steps, contact)
     out["sole_tilt_deg"] = sole_tilt_deg(steps, contact)
+    out["torso_pitch_deg"] = torso_pitch_deg(steps)
     out["double_support_share"], out["flight_share"] = support_shares(steps, contact)
     out["knee_midstance_deg"], out["knee_swing_peak_deg"] = knee_phases_deg(steps, events, spec)
 

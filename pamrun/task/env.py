@@ -64,7 +64,7 @@ Truncation after ``env.episode_s`` (10 s). Termination by a fall (:func:`pamrun.
 or when the physics state is not finite (``info["physics_error"]``).
 
 ## info
-``x``, ``y``, ``z``, ``distance`` [m], ``reward_terms`` (weighted) and ``reward_unweighted``
+``x``, ``y``, ``z``, ``distance`` [m], ``torso_rpy_rad`` (3,) (the torso's roll, pitch and yaw), ``reward_terms`` (weighted) and ``reward_unweighted``
 (the features), each a dict by weight key, ``pressure_kpa``, ``contraction_pct`` (10, 2),
 ``foot_force_n`` (2,) [N], ``sole_xyz_m`` (2, 4, 3) [m], ``joint_torque_nm`` (10,) [N m],
 ``fell``, ``physics_error``, ``target_speed_m_s`` (v* now), and ``air_nl`` [normal litres] when the
@@ -468,6 +468,7 @@ class PamWalkerEnv(gym.Env):
             "x": np.float64(x),
             "y": np.float64(y),
             "z": np.float64(z),
+            "torso_rpy_rad": np.array(torso[3:6]),
             "distance": distance,
             "pressure_kpa": self.drive.pressure_kpa.copy(),
             "contraction_pct": self.drive.contraction_pct.copy(),
