@@ -52,7 +52,7 @@ class RewardConfig:
     # down in it (a foot landing still moving forward skids on into its stance)
     kland: float = 0.0
     # weight of the torso's squared tilt from upright, roll^2 + pitch^2 [rad^2] (a walker's trunk stays
-    # within a few degrees of upright; a torso leaning forward walks on short, quick steps)
+    # within a few degrees of upright)
     kupright: float = 0.0
 
     def __post_init__(self) -> None:
