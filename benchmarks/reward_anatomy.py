@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from pamrun.evaluation.episodes import make_policy
-from pamrun.learning.checkpoints import load_agent
+from pamrun.learning.checkpoints import Agent, load_agent
 from pamrun.learning.curriculum import WalkCurriculum
 from pamrun.runs.directory import saved_config
 from pamrun.task import clock
@@ -48,10 +48,9 @@ class Anatomy:
     control_dt_s: float = 0.025
 
 
-def measure(agent_path: str, episodes: int, seed: int) -> Anatomy:
+def measure(agent: Agent, episodes: int, seed: int) -> Anatomy:
     """Every term's unweighted mean per control step over ``episodes`` deterministic episodes from
     ``seed``, and, with a gait clock, each foot's misses of its wants at every step."""
-    agent = load_agent(agent_path)
     spec = EnvSpec.from_dict(agent.config)
     env = PamWalkerEnv(**spec.sections(), features=REWARD_KEYS)
     cfg, policy = env.env_cfg, make_policy(agent)
@@ -102,9 +101,8 @@ def print_wants(anatomy: Anatomy) -> None:
                       f"the largest in {largest.count(name) / len(rows):.0%}")
 
 
-def stage_weights(agent_path: str) -> dict[str, dict[str, float]]:
+def stage_weights(agent: Agent) -> dict[str, dict[str, float]]:
     """The weights of each stage of the agent's run (just ``reward.*`` for a file outside a run)."""
-    agent = load_agent(agent_path)
     if agent.run_dir is None:
         spec = EnvSpec.from_dict(agent.config)
         return {"env": {k: getattr(spec.reward, k) for k in REWARD_KEYS}}
@@ -126,7 +124,8 @@ def main() -> None:
     parser.add_argument("--set", nargs="*", default=[], metavar="KEY=WEIGHT",
                         help="a column of the last stage's weights with these changed")
     args = parser.parse_args()
-    stages = stage_weights(args.agent)
+    agent = load_agent(args.agent)
+    stages = stage_weights(agent)
     if args.set:
         changed = dict(stages[list(stages)[-1]])
         for item in args.set:
@@ -135,7 +134,7 @@ def main() -> None:
                 raise SystemExit(f"--set {item}: unknown weight {key!r}; known: {', '.join(REWARD_KEYS)}")
             changed[key] = float(value)
         stages["--set"] = changed
-    anatomy = measure(args.agent, args.episodes, args.seed)
+    anatomy = measure(agent, args.episodes, args.seed)
     means, last = anatomy.means, list(stages)[-1]
     print(f"{Path(args.agent)}: {args.episodes} episodes from seed {args.seed}, {anatomy.steps} control steps, "
           f"falls {anatomy.fall_share:.0%}; mean per step, unweighted and weighted by each stage")

@@ -28,9 +28,9 @@ def anatomy_module():
 
 def test_the_terms_add_up_to_the_return_and_the_clock_is_split_by_want():
     anatomy = anatomy_module()
-    weights = anatomy.stage_weights(str(WALKER))["env"]  # a file outside a run: its env's own weights
-    out = anatomy.measure(str(WALKER), episodes=1, seed=1000)
     agent = load_agent(WALKER)
+    weights = anatomy.stage_weights(agent)["env"]  # a file outside a run: its env's own weights
+    out = anatomy.measure(agent, episodes=1, seed=1000)
     episode = run_episode(make_policy(agent), EnvSpec.from_dict(agent.config).make(), seed=1000, keep_steps=False)
     assert out.steps == round(episode["duration_s"] / out.control_dt_s)
     total = sum(weights[k] * out.means[k] for k in weights) * out.steps
@@ -39,8 +39,5 @@ def test_the_terms_add_up_to_the_return_and_the_clock_is_split_by_want():
     assert len(out.wants) == 2 * out.steps
     assert {name for _, wants in out.wants for name in wants} <= set(clock.SWING_WANTS) | set(clock.STANCE_WANTS)
     # kgait's feature is 1 - (1/2) sum over the feet of the miss their wants make
-    def miss(swing, wants):
-        return (swing * max(wants[k] for k in clock.SWING_WANTS if k in wants)
-                + (1 - swing) * max(wants[k] for k in clock.STANCE_WANTS if k in wants))
-    rebuilt = 1.0 - 0.5 * sum(miss(*row) for row in out.wants) / out.steps
+    rebuilt = 1.0 - 0.5 * sum(clock.miss_of(*row) for row in out.wants) / out.steps
     assert rebuilt == pytest.approx(out.means["kgait"], rel=1e-9)

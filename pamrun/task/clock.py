@@ -52,7 +52,12 @@ def foot_wants(share: float, speed_m_s: float, lift_m: float, knee_rad: float, e
 def foot_miss(swing: float, share: float, speed_m_s: float, lift_m: float, knee_rad: float, env: EnvConfig) -> float:
     """One foot's miss of the clock, in [0, 1], at swing weight s: s times the largest of its swing
     wants' misses plus (1 - s) times the largest of its stance wants' (:func:`foot_wants`)."""
-    wants = foot_wants(share, speed_m_s, lift_m, knee_rad, env)
+    return miss_of(swing, foot_wants(share, speed_m_s, lift_m, knee_rad, env))
+
+
+def miss_of(swing: float, wants: dict[str, float]) -> float:
+    """A foot's miss at swing weight s from its wants' misses (:func:`foot_wants`): s times the
+    largest swing miss plus (1 - s) times the largest stance miss."""
     return (swing * max(wants[k] for k in SWING_WANTS if k in wants)
             + (1.0 - swing) * max(wants[k] for k in STANCE_WANTS if k in wants))
 
