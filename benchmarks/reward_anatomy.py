@@ -14,7 +14,8 @@ mean is its share of the return per step: the terms a learner can gain most on h
 With a gait clock, it then splits ``kgait``'s miss by want (``pamrun.task.clock.foot_wants``):
 each want's mean miss over the feet's control steps in the clock's swing (swing weight over
 1/2) and in its stance, and the share of those steps in which that want is the foot's largest
-miss (the one the clock charges), and the feet's own step rate against the clock's.
+miss (the one the clock charges), and the feet's own step rate against the clock's. Last, a gait cycle against the clock: each
+foot's contact, load, knee and sole speed through its own clock phase, in 20 bins.
 """
 
 from __future__ import annotations
@@ -43,8 +44,11 @@ class Anatomy:
     steps: int  # control steps
     fall_share: float  # episodes that ended in a fall
     wants: list[tuple[float, dict[str, float]]] = field(default_factory=list)  # per foot and step: swing weight, misses
+    cycle: list[tuple[float, bool, bool, float, float, float]] = field(default_factory=list)  # per foot and step:
+    # its own clock phase, down, the other foot down, load share, knee [rad], sole speed [m/s]
     touchdowns: int = 0  # the feet's touchdowns (kstep's)
     clock_steps_per_s: float = 0.0  # the clock's step rate, 2 / its period
+    swing_share: float = 0.4  # the clock's env.swing_share
     control_dt_s: float = 0.025
 
 
@@ -73,11 +77,14 @@ def measure(agent: Agent, episodes: int, seed: int) -> Anatomy:
                 for foot, swing in enumerate(clock.swing_weights(ep.phase(cfg), cfg.swing_share)):
                     share = float(info["foot_force_n"][foot]) / env.weight_n
                     out.wants.append((swing, clock.foot_wants(share, speeds[foot], lifts[foot], knees[foot], cfg)))
+                    out.cycle.append(((ep.phase(cfg) + 0.5 * foot) % 1.0, bool(ep.contact[foot]),
+                                      bool(ep.contact[1 - foot]), share, float(knees[foot]), speeds[foot]))
             if terminated or truncated:
                 out.fall_share += bool(terminated) / episodes
                 break
     out.means = {k: v / out.steps for k, v in out.means.items()}
     out.clock_steps_per_s = 2.0 / cfg.gait_period_s if env.gait_clock else 0.0
+    out.swing_share = cfg.swing_share
     out.control_dt_s = cfg.control_dt_s
     return out
 
@@ -99,6 +106,27 @@ def print_wants(anatomy: Anatomy) -> None:
             if name in rows[0]:
                 print(f"  {name:>13}: mean miss {np.mean([w[name] for w in rows]):.3f}, "
                       f"the largest in {largest.count(name) / len(rows):.0%}")
+
+
+def print_cycle(anatomy: Anatomy, bins: int = 20) -> None:
+    """Each foot through its own clock phase (0 to 1, the clock's swing first): what the clock asks
+    and what the foot does, averaged over both feet and every stride."""
+    rows = np.array(anatomy.cycle, dtype=float)
+    where = np.minimum((rows[:, 0] * bins).astype(int), bins - 1)
+    start = 0.25 - anatomy.swing_share / 2  # clock.swing_weights: sin 2 pi phi > cos pi sigma
+    print(f"\nthrough a foot's clock phase ({bins} bins, both feet and every stride; the clock swings it from "
+          f"{start:.2f} to {start + anatomy.swing_share:.2f}): the clock's swing weight, the share of steps the foot "
+          f"is down, with no foot down, with both down, its load (share of the weight), knee, sole speed")
+    print(f"{'phase':>9} {'swing':>6} {'down':>6} {'flight':>7} {'both':>6} {'load':>6} {'knee deg':>9} {'speed m/s':>10}")
+    for b in range(bins):
+        r = rows[where == b]
+        if not len(r):
+            continue
+        mid = (b + 0.5) / bins
+        swing = clock.swing_weights(mid, anatomy.swing_share)[0]
+        print(f"{b / bins:4.2f}-{(b + 1) / bins:4.2f} {swing:>6.2f} {r[:, 1].mean():>6.0%} "
+              f"{((r[:, 1] == 0) & (r[:, 2] == 0)).mean():>7.0%} {((r[:, 1] == 1) & (r[:, 2] == 1)).mean():>6.0%} "
+              f"{r[:, 3].mean():>6.2f} {np.degrees(r[:, 4].mean()):>9.1f} {r[:, 5].mean():>10.2f}")
 
 
 def stage_weights(agent: Agent) -> dict[str, dict[str, float]]:
@@ -148,6 +176,7 @@ def main() -> None:
                                                for w in stages.values()))
     if anatomy.wants:
         print_wants(anatomy)
+        print_cycle(anatomy)
     if np.isnan(sum(means.values())):
         raise SystemExit("a term came out NaN")
 

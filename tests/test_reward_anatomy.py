@@ -7,6 +7,7 @@ import importlib.util
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from pamrun.evaluation.episodes import make_policy, run_episode
@@ -41,3 +42,17 @@ def test_the_terms_add_up_to_the_return_and_the_clock_is_split_by_want():
     # kgait's feature is 1 - (1/2) sum over the feet of the miss their wants make
     rebuilt = 1.0 - 0.5 * sum(clock.miss_of(*row) for row in out.wants) / out.steps
     assert rebuilt == pytest.approx(out.means["kgait"], rel=1e-9)
+
+
+def test_the_gait_cycle_follows_each_foot_through_its_own_clock_phase(capsys):
+    anatomy = anatomy_module()
+    out = anatomy.measure(load_agent(WALKER), episodes=1, seed=1000)
+    assert len(out.cycle) == len(out.wants)
+    right, left = np.array(out.cycle[0::2]), np.array(out.cycle[1::2])
+    assert np.allclose((left[:, 0] - right[:, 0]) % 1.0, 0.5)  # the left foot's clock runs half a stride on
+    period_s = load_agent(WALKER).config["env"]["gait_period_s"]
+    assert np.allclose(np.diff(right[:, 0]) % 1.0, out.control_dt_s / period_s)
+    assert np.array_equal(right[:, 2], left[:, 1])  # "the other foot down" is the other foot's own contact
+    anatomy.print_cycle(out)
+    table = capsys.readouterr().out.splitlines()
+    assert len(table) == 3 + 20 and table[3].startswith("0.00-0.05")
