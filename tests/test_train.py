@@ -354,7 +354,7 @@ def test_resume_takes_a_new_budget_and_names_what_it_ignores(tmp_path):
 @pytest.mark.slow
 def test_a_run_started_from_a_trained_agent_begins_with_its_networks(tmp_path):
     """``train.init_from``: a run's last.pt gives the new run its actor, critics, targets and replay
-    buffer (not the buffer where reward.* differs, or where its transitions lack a term this run's
+    buffer (not the buffer where reward.*, env.*, body.* or muscle.* differs, or where its transitions lack a term this run's
     stages weigh, one its run never computed); an agent file its actor alone (the critics new,
     the buffer empty); the agent is evaluated at frame 0; the counters start at 0. With no updates
     the networks end as they began, so last.pt shows what was taken."""
@@ -388,6 +388,11 @@ def test_a_run_started_from_a_trained_agent_begins_with_its_networks(tmp_path):
     d = torch.load(other / "checkpoints" / "last.pt", weights_only=True)
     assert d["buffer"]["length"] == 400
     assert all(torch.equal(v, d["networks"]["critics"][k]) for k, v in a["networks"]["critics"].items())
+
+    clock = tmp_path / "clock"  # gathered under another gait clock (its kgait, its observed phase): left behind
+    assert train_here(clock, *TINY, *still, "train.eval_every_frames=0", "env.gait_period_s=0.9",
+                      f"train.init_from={source / 'checkpoints' / 'last.pt'}") == "max_frames"
+    assert torch.load(clock / "checkpoints" / "last.pt", weights_only=True)["buffer"]["length"] == 400
 
     f_dir = tmp_path / "uncomputed"  # the source's env never computed kslip (weight 0, no stage): its buffer holds 0s
     assert train_here(f_dir, *TINY, *still, "+train.walk_weights.kslip=1",

@@ -86,7 +86,8 @@ class TrainConfig:
     checkpoint_every_frames: int = 20_000  # write checkpoints/last.pt (and the buffer) this often
     # Start from a trained agent (a fine-tune, e.g. under other walk_weights): an agent file
     # (checkpoints/*.pt, agents/*.pt) gives the actor; a run's checkpoints/last.pt the actor, the
-    # critics and, where reward.* is the same, its replay buffer (re-weighted like every sample).
+    # critics and, where reward.*, env.*, body.* and muscle.* are the same, its replay buffer
+    # (re-weighted like every sample).
     # The counters start at 0, the agent is evaluated at frame 0, and a stand-then-walk curriculum
     # starts at its walking stage. Set train.init_random_frames=0 to keep its first frames its own.
     # "" = from scratch
