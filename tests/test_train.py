@@ -467,6 +467,46 @@ def test_the_gait_stage_follows_the_first_evaluation_that_passes_every_episode(c
     assert (again.stage, again.since, again.gait_since) == ("gait", 60000, 80000)
 
 
+def test_adapted_weights_rise_while_the_walk_holds_and_fall_back_when_it_fails(cfg):
+    """train.adapt_weights: in the gait stage each all-pass evaluation multiplies them by
+    train.adapt_factor up to their caps, each other divides them down to the gait stage's own;
+    the replay buffer's samples follow, and a resume's replay of evals.csv finds the same weights."""
+    from pamrun.learning.curriculum import WalkCurriculum
+
+    cfg.train.walk_weights, cfg.train.gait_weights = {"kspeed": 4.0, "kda": 0.5}, {"kflight": 20.0}
+    cfg.train.adapt_weights, cfg.train.adapt_factor = {"kda": 1.0, "kflight": 100.0}, 2.0
+    curriculum, rows, seen = WalkCurriculum(cfg), [], []
+    for frames, walk in zip(range(60000, 140000, 10000), (0.0, 1.0, 1.0, 1.0, 0.9, 0.5, 0.9, 1.0)):
+        curriculum.observe(1.0, frames, walk)
+        rows.append({"frames": frames, "stand_rate": 1.0, "walk_pass_rate": walk})
+        seen.append(curriculum.adapted() if curriculum.stage == "gait" else None)
+    assert curriculum.gait_since == 70000 and seen[:2] == [None, {"kda": 0.5, "kflight": 20.0}]
+    assert seen[2:] == [{"kda": 1.0, "kflight": 40.0}, {"kda": 1.0, "kflight": 80.0},  # kda at its cap
+                        {"kda": 0.5, "kflight": 40.0}, {"kda": 0.5, "kflight": 20.0},  # never below the stage's
+                        {"kda": 0.5, "kflight": 20.0}, {"kda": 1.0, "kflight": 40.0}]
+    base = cfg.reward.kda
+    assert curriculum.transform.delta["kda"] == 1.0 - base and curriculum.transform.delta["kflight"] == 40.0
+    assert "train.adapt_weights" in curriculum.describe()
+    again = WalkCurriculum(cfg)
+    again.replay(rows)
+    assert again.adapted() == {"kda": 1.0, "kflight": 40.0}
+
+
+def test_adapted_weights_name_a_bad_key_a_bad_cap_and_need_the_gait_stage():
+    from pamrun.config import ConfigError
+
+    gait = ("experiment=gait", "seed=1")
+    for overrides, key in ((("+train.adapt_weights.kfly=2",), "train.adapt_weights.kfly"),
+                           (("+train.adapt_weights.kda=-1",), "train.adapt_weights.kda"),
+                           (("+train.adapt_weights.kda=0.1",), "train.adapt_weights.kda"),  # below the stage's 0.5
+                           (("+train.adapt_weights.kland=1",), "train.adapt_weights.kland"),  # 0 in the gait stage
+                           (("+train.adapt_weights.kda=2", "train.adapt_factor=1"), "train.adapt_factor"),
+                           (("experiment=walker", "+train.adapt_weights.kda=2"), "train.adapt_weights")):
+        with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+            to_object(compose_config(*gait, *overrides))
+    assert to_object(compose_config(*gait, "+train.adapt_weights.kda=2")).train.adapt_weights == {"kda": 2.0}
+
+
 def test_gait_weights_need_a_walking_stage_and_name_a_bad_key():
     from pamrun.config import ConfigError
 
@@ -479,10 +519,14 @@ def test_gait_weights_need_a_walking_stage_and_name_a_bad_key():
 @pytest.mark.slow
 def test_a_walker_fine_tuned_with_gait_weights_starts_at_the_gait_stage(tmp_path):
     """The shipped walker passes its frame-0 evaluation, so a fine-tune of it with train.gait_weights
-    is at the gait stage from frame 0: run.json records both switches, the console says so."""
+    is at the gait stage from frame 0: run.json records both switches, the console says so. Its
+    train.adapt_weights follow each later evaluation, in TensorBoard's curriculum/*."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
     run_dir = tmp_path / "gait"
     status = train_here(run_dir, "experiment=walker", "train.init_from=agents/walker_td3_seed0.pt",
-                        "+train.gait_weights.kflight=20", "train.max_frames=200", "train.eval_every_frames=200",
+                        "+train.gait_weights.kflight=20", "+train.adapt_weights.kflight=30", "train.adapt_factor=1.5",
+                        "train.max_frames=200", "train.eval_every_frames=200",
                         "train.eval_episodes=2", "train.select_perturbations=[]", "train.eval_video_every=0",
                         "train.init_random_frames=0", "train.updates_per_frame=0.1")
     assert status == "max_frames"
@@ -490,3 +534,5 @@ def test_a_walker_fine_tuned_with_gait_weights_starts_at_the_gait_stage(tmp_path
     assert rows[0]["frames"] == "0" and rows[0]["walk_pass_rate"] == "1.0"
     info = json.loads((run_dir / "run.json").read_text())
     assert info["walk_kvx_from_frames"] == 0 and info["gait_weights_from_frames"] == 0
+    adapted = {e.step: e.value for e in EventAccumulator(str(run_dir / "tensorboard")).Reload().Scalars("curriculum/kflight")}
+    assert adapted[200] == (30.0 if rows[1]["walk_pass_rate"] == "1.0" else 20.0)  # raised only where all passed

@@ -94,6 +94,10 @@ class Config:
                                                                   self.train.walk_weights.get("kgait", 0.0))):
             _require(not weight or self.env.gait_period_s > 0, key,
                      "needs a gait clock to follow (env.gait_period_s > 0, e.g. 0.8)")
+        for key, cap in self.train.adapt_weights.items():  # from the gait stage's own weight up to cap
+            stage = {**asdict(self.reward), **self.train.walk_weights, **self.train.gait_weights}[key]
+            _require(0 < stage <= cap, f"train.adapt_weights.{key}",
+                     f"adapts from the gait stage's weight ({stage:g}), which must be > 0 and <= {cap:g}")
         try:
             check_muscle_stretch(self.muscle, self.body)
         except ConfigError as err:

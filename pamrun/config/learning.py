@@ -123,6 +123,13 @@ class TrainConfig:
     # the walk test, these weights (any reward key, e.g. {kflight: 20}) replace the walking stage's,
     # re-weighted the same way. {} = no third stage
     gait_weights: dict[str, float] = field(default_factory=dict)
+    # Costs raised while the walk holds (Schumacher et al. 2025, iScience 28:112203, raise an
+    # effort cost while performance holds and lower it when it drops): in the gait stage, each
+    # evaluation in which every episode passes the walk test multiplies these weights by
+    # adapt_factor, up to the value given here; one in which any fails divides them, down to the
+    # gait stage's own (which must be > 0). E.g. {kv: 1.0, kda: 4.0}. {} = off
+    adapt_weights: dict[str, float] = field(default_factory=dict)
+    adapt_factor: float = 1.25
     # Domain randomisation (pamrun/task/randomize.py): each episode, with probability randomize_prob,
     # randomize_count of these eval.perturbations (the robustness suite's), each at a strength drawn
     # in [0, randomize_reach] of the way to it. [] = off. The evaluations during training stay nominal.
@@ -162,6 +169,14 @@ class TrainConfig:
                 _require(key in RewardConfig.__dataclass_fields__, f"{name}.{key}",
                          f"not a reward weight; known: {', '.join(RewardConfig.__dataclass_fields__)}")
                 _require(math.isfinite(weight), f"{name}.{key}", "must be finite")
+        for key, cap in self.adapt_weights.items():
+            _require(key in RewardConfig.__dataclass_fields__, f"adapt_weights.{key}",
+                     f"not a reward weight; known: {', '.join(RewardConfig.__dataclass_fields__)}")
+            _require(math.isfinite(cap) and cap > 0, f"adapt_weights.{key}", f"must be a finite weight > 0, got {cap}")
+        _require(not self.adapt_weights or self.gait_weights, "adapt_weights",
+                 "adapts the gait stage's weights: needs train.gait_weights")
+        _require(math.isfinite(self.adapt_factor) and self.adapt_factor > 1, "adapt_factor",
+                 f"must be > 1, got {self.adapt_factor}")
         _require(not self.gait_weights or self.walk_weights or self.walk_kvx is not None, "gait_weights",
                  "is the stage after walking: needs train.walk_weights or train.walk_kvx")
         _require(not self.walk_weights or self.eval_every_frames > 0, "walk_weights",

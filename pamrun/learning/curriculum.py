@@ -18,7 +18,9 @@ A run from a trained agent (``train.init_from``) is at the walking stage from it
 ``train.gait_weights`` adds a third stage, gait: from the walking stage's first evaluation in
 which every episode passes the walk test, its weights replace those of the walking stage (a
 run that first learns to walk, however it can, then how: a flight or a crouch charged from the
-start keeps it from learning to walk at all).
+start keeps it from learning to walk at all). In it, ``train.adapt_weights`` rise by
+``train.adapt_factor`` after each evaluation in which every episode passes, up to their caps, and
+fall back after one in which any fails: the largest costs the walk bears.
 """
 
 from __future__ import annotations
@@ -103,7 +105,8 @@ class WalkCurriculum:
         self.cfg, self.kvx, self.stage = cfg, cfg.train.walk_kvx, "stand"
         self.weights = {**{k: getattr(cfg.reward, k) for k in REWARD_KEYS}, **cfg.train.walk_weights,
                         **({"kvx": self.kvx} if self.kvx is not None else {})}  # the walking stage's
-        self.gait_weights = {**self.weights, **cfg.train.gait_weights}  # the gait stage's
+        self.gait_weights = {**self.weights, **cfg.train.gait_weights}  # the gait stage's (adapted: _adapt)
+        self.adapted_from = {k: self.gait_weights[k] for k in cfg.train.adapt_weights}
         self.since: int | None = None  # frames of the evaluation that started the walking stage
         self.gait_since: int | None = None  # ... and the gait stage
         self.transform = Reweight({k: getattr(cfg.reward, k) for k in REWARD_KEYS})
@@ -128,7 +131,30 @@ class WalkCurriculum:
             return self._start("walk", frames)
         if self.stage == "walk" and self.cfg.train.gait_weights and walk_pass_rate >= 1.0:
             return self._start("gait", frames)
+        if self.stage == "gait" and self.cfg.train.adapt_weights:
+            self._adapt(walk_pass_rate >= 1.0)
         return False
+
+    def _adapt(self, holds: bool) -> None:
+        """``train.adapt_weights``: each one times ``train.adapt_factor`` (up to its cap) after an
+        evaluation in which every episode passes, divided by it (down to the gait stage's own) after
+        one in which any fails."""
+        factor = self.cfg.train.adapt_factor
+        for key, cap in self.cfg.train.adapt_weights.items():
+            weight = self.gait_weights[key]
+            self.gait_weights[key] = min(weight * factor, cap) if holds else max(weight / factor, self.adapted_from[key])
+        self.transform.set_weights(self.gait_weights)
+
+    def _describe_adapt(self) -> str:
+        if not self.cfg.train.adapt_weights:
+            return ""
+        caps = ", ".join(f"{k} {self.adapted_from[k]:g} up to {cap:g}" for k, cap in self.cfg.train.adapt_weights.items())
+        return (f" While every evaluation episode passes, these rise x{self.cfg.train.adapt_factor:g} an evaluation, "
+                f"and fall back when one fails (train.adapt_weights): {caps}; TensorBoard curriculum/*.")
+
+    def adapted(self) -> dict[str, float]:
+        """``train.adapt_weights``' keys and their weights now."""
+        return {key: self.gait_weights[key] for key in self.cfg.train.adapt_weights}
 
     def _start(self, stage: str, frames: int) -> bool:
         self.stage = stage
@@ -154,7 +180,7 @@ class WalkCurriculum:
         if self.stage == "gait":
             return (f"Gait stage of the curriculum since {self.gait_since} frames, when every evaluation episode "
                     f"first passed the walk test: the learner's weights {changed} (train.gait_weights over "
-                    f"train.walk_weights; the env keeps reward.*).")
+                    f"train.walk_weights; the env keeps reward.*).{self._describe_adapt()}")
         why = ("from the first frame, a trained agent's run (train.init_from)" if self.cfg.train.init_from else
                f"since {self.since} frames, when it first stood in every evaluation episode")
         return (f"Walking stage of the curriculum {why}: the learner's weights {changed} "

@@ -336,6 +336,9 @@ class Run:
                 self.log.writer.add_scalar(f"curriculum/{key}", weight, self.frames)
             self.info["gait_weights_from_frames" if self.curriculum.stage == "gait" else "walk_kvx_from_frames"] = self.frames
             self.console.print(self.curriculum.describe(), soft_wrap=True)
+        if self.curriculum.stage == "gait":
+            for key, weight in self.curriculum.adapted().items():  # train.adapt_weights, after this evaluation
+                self.log.writer.add_scalar(f"curriculum/{key}", weight, self.frames)
         self.progress.evaluated(result, self.counters())
         return result
 
