@@ -75,6 +75,10 @@ def test_a_spec_is_its_own_copy_and_changes_into_a_new_one():
     with pytest.raises(ConfigError) as err:
         spec.with_values(env={"episode_s": -1.0})
     assert err.value.key == "env.episode_s"
+    assert spec.changes_to(spec) == [] and spec.changes_to(EnvSpec.from_dict(spec.to_dict())) == []
+    other = spec.with_values(env={"gait_period_s": 0.9}, reward={"kv": 0.5})
+    assert spec.changes_to(other) == [f"env.gait_period_s {spec.env.gait_period_s} -> 0.9",
+                                      f"reward.kv {spec.reward.kv} -> 0.5"]
 
 
 @pytest.mark.parametrize("perturbation, key", [

@@ -389,10 +389,10 @@ def test_a_run_started_from_a_trained_agent_begins_with_its_networks(tmp_path):
     assert d["buffer"]["length"] == 400
     assert all(torch.equal(v, d["networks"]["critics"][k]) for k, v in a["networks"]["critics"].items())
 
-    clock = tmp_path / "clock"  # gathered under another gait clock (its kgait, its observed phase): left behind
-    assert train_here(clock, *TINY, *still, "train.eval_every_frames=0", "env.gait_period_s=0.9",
+    speed = tmp_path / "speed"  # gathered in an env that asked another speed (kspeed's, kstep's): left behind
+    assert train_here(speed, *TINY, *still, "train.eval_every_frames=0", "env.target_speed_m_s=0.8",
                       f"train.init_from={source / 'checkpoints' / 'last.pt'}") == "max_frames"
-    assert torch.load(clock / "checkpoints" / "last.pt", weights_only=True)["buffer"]["length"] == 400
+    assert torch.load(speed / "checkpoints" / "last.pt", weights_only=True)["buffer"]["length"] == 400
 
     f_dir = tmp_path / "uncomputed"  # the source's env never computed kslip (weight 0, no stage): its buffer holds 0s
     assert train_here(f_dir, *TINY, *still, "+train.walk_weights.kslip=1",

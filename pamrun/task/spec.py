@@ -63,6 +63,11 @@ class EnvSpec:
         """The sections as plain dicts: an agent file's ``config`` entry."""
         return {name: asdict(section) for name, section in self.sections().items()}
 
+    def changes_to(self, other: EnvSpec) -> list[str]:
+        """``key old -> new`` for each key of the sections in which ``other`` differs from this spec."""
+        ours, theirs = flatten(self.to_dict()), flatten(other.to_dict())
+        return [f"{k} {ours.get(k)} -> {theirs[k]}" for k in sorted(theirs) if ours.get(k) != theirs[k]]
+
     def sections(self) -> dict[str, Any]:
         """Section name -> its dataclass: PamWalker-v0's keyword arguments."""
         return {name: getattr(self, name) for name in ENV_SECTIONS}

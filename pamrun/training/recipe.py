@@ -32,7 +32,7 @@ from torchrl.envs import GymWrapper
 from torchrl.envs.gym_like import default_info_dict_reader
 
 import pamrun  # noqa: F401  (registers PamWalker-v0 with Gymnasium, in worker processes too)
-from pamrun.config import Config, ConfigError, flatten, to_object, without_hydra
+from pamrun.config import Config, ConfigError, to_object, without_hydra
 from pamrun.evaluation import board, figures
 from pamrun.evaluation.evaluator import TrainingEvaluator
 from pamrun.learning import checkpoints, networks
@@ -201,7 +201,7 @@ def start_from(cfg: Config, learner: networks.Learner, buffer, console) -> None:
         raise SystemExit(f"pamrun: train.init_from: {path}: its networks do not fit algo.* ({first})") from None
     record, config = state.get("buffer"), state.get("config") or {}
     if record is not None:
-        differ = _env_changes(config, cfg)
+        differ = EnvSpec.from_dict(config).changes_to(EnvSpec.from_config(cfg))  # its transitions' env is not ours
         computed = (set(record["terms"]) if "terms" in record
                     else _computed_before_terms_were_saved(path, config.get("reward", {})))
         uncarried = [k for k in reweighted_terms(cfg) if k not in computed]
@@ -219,14 +219,6 @@ def start_from(cfg: Config, learner: networks.Learner, buffer, console) -> None:
                 raise SystemExit(f"pamrun: train.init_from: {err}") from None
             took += f", and its {len(buffer)} replayed transitions"
     console.print(f"Starting from {took} of {path}.", soft_wrap=True)
-
-
-def _env_changes(source: dict, cfg: Config) -> list[str]:
-    """``key old -> new`` for each key of the env's sections (robot, muscle, reward weights, env)
-    in which an agent file's ``config`` entry differs from ``cfg``: its transitions' dynamics,
-    observations or summed rewards are not this run's."""
-    theirs, ours = (flatten(spec.to_dict()) for spec in (EnvSpec.from_dict(source), EnvSpec.from_config(cfg)))
-    return [f"{k} {theirs[k]} -> {ours[k]}" for k in sorted(ours) if theirs.get(k) != ours[k]]
 
 
 def _computed_before_terms_were_saved(path: Path, source_weights: dict) -> set[str]:
