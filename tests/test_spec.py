@@ -107,15 +107,19 @@ def test_a_perturbation_goes_part_of_the_way_at_a_strength():
     assert half.muscle is spec.muscle and half.reward is spec.reward
 
 
-def test_pamrun_eval_holds_the_commanded_speed_and_training_keeps_the_run_s():
-    """eval_env_options: pamrun eval holds v* (eval.speed_m_s, else the agent's own) with no
-    drawn range; the evaluations during training take the start noise and episode length and
-    keep the run's commanded speed (a drawn range stays drawn)."""
-    cfg = to_object(compose_config("env.speed_command=true", "env.speed_range_m_s=[0.5,1.2]", "eval.speed_m_s=0.8",
+def test_evaluations_hold_one_commanded_speed_in_pamrun_eval_and_in_training():
+    """eval_env_options: an evaluation holds v* (eval.speed_m_s, else the agent's own) with no
+    drawn range, changes or stops, in pamrun eval and in the selection evaluations during
+    training alike (the walk test is defined at one speed)."""
+    cfg = to_object(compose_config("env.speed_command=true", "env.speed_range_m_s=[0.5,1.2]", "env.speed_changes=2",
+                                   "env.speed_stop_share=0.2", "eval.speed_m_s=0.8",
                                    "train.eval_episodes=1", "eval.episode_s=0.5", "eval.walk_duration_s=0.5"))
     held = eval_env_options(cfg.eval)
     assert held["speed_range_m_s"] == [] and held["target_speed_m_s"] == 0.8 and held["episode_s"] == 0.5
-    assert set(eval_env_options(cfg.eval, hold_speed=False)) == {"reset_noise_rad", "reset_velocity_noise", "episode_s"}
     evaluator = TrainingEvaluator(cfg)
-    assert evaluator.env.env_cfg.speed_range_m_s == [0.5, 1.2] and evaluator.env.env_cfg.episode_s == 0.5
+    env = evaluator.env.env_cfg
+    assert (env.speed_range_m_s, env.speed_changes, env.speed_stop_share) == ([], 0, 0.0)
+    assert env.target_speed_m_s == 0.8 and env.episode_s == 0.5 and env.speed_command
+    evaluator.env.reset(seed=3)
+    assert evaluator.env.target_speed_m_s == 0.8 and evaluator.env.episode.changes == []
     evaluator.close()

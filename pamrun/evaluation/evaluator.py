@@ -36,8 +36,8 @@ class TrainingEvaluator:
     Every call runs ``cfg.train.eval_episodes`` deterministic episodes in one env of the
     run's robot and task, episode k from seed ``eval.selection_seed + k`` (the selection
     block, disjoint from ``pamrun eval``'s held-out ``eval.seed``) with the evaluation's start
-    noise and episode length (:func:`pamrun.task.spec.eval_env_options`; the commanded speed
-    stays the run's own), the same starts every time, in this process with one torch thread,
+    noise, episode length and commanded speed (:func:`pamrun.task.spec.eval_env_options`: a run
+    that trains over drawn speeds is selected at ``eval.speed_m_s``, else its own v*), the same starts every time, in this process with one torch thread,
     and returns the aggregate (:func:`pamrun.evaluation.episodes.aggregate`) with its cost ``eval_s``
     and its first episode with its per-step arrays (``first_episode``; the gait figure's).
 
@@ -59,7 +59,7 @@ class TrainingEvaluator:
         self.ecfg, self.episodes = cfg.eval, cfg.train.eval_episodes
         t = cfg.train
         self.select_counts = [t.select_episodes_of.get(name, t.select_episodes) for name in t.select_perturbations]
-        self.spec = EnvSpec.from_config(cfg).with_values(env=eval_env_options(cfg.eval, hold_speed=False))
+        self.spec = EnvSpec.from_config(cfg).with_values(env=eval_env_options(cfg.eval))
         self.env = self.spec.make()
         self.gait_spec = GaitSpec.from_configs(self.env.body_cfg, self.env.muscle_cfg, self.env.mass_kg,
                                                self.env.env_cfg.control_dt_s)

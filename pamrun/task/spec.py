@@ -121,21 +121,19 @@ class EnvSpec:
 SECTION_TYPES: dict[str, type] = get_type_hints(EnvSpec)  # section name -> its dataclass
 
 
-def eval_env_options(ecfg, hold_speed: bool = True) -> dict:
+def eval_env_options(ecfg) -> dict:
     """What an evaluation sets of every agent's task (``eval``: a
-    :class:`pamrun.config.EvalConfig`): its start noise and episode length and, with
-    ``hold_speed`` (``pamrun eval``), a commanded speed held for the whole episode
-    (``eval.speed_m_s``), or a schedule of them (``eval.speed_schedule``), else the agent's own v*
-    (no drawn speed range or changes). The evaluations during training keep the run's own
-    commanded speed (drawn per episode from ``env.speed_range_m_s`` where the run draws it)."""
+    :class:`pamrun.config.EvalConfig`), in ``pamrun eval`` and in the selection evaluations during
+    training alike: its start noise and episode length, and a commanded speed held for the whole
+    episode (``eval.speed_m_s``), or a schedule of them (``eval.speed_schedule``), else the
+    agent's own v* (``env.target_speed_m_s``), never a drawn range or drawn changes: the walk
+    test is defined at one speed, so a run that trains over drawn speeds is selected at it."""
     options = {"reset_noise_rad": ecfg.reset_noise_rad, "reset_velocity_noise": ecfg.reset_velocity_noise,
                "episode_s": ecfg.episode_s}
-    if hold_speed:
-        speed = {} if ecfg.speed_m_s is None else {"target_speed_m_s": ecfg.speed_m_s, "speed_schedule": []}
-        if ecfg.speed_schedule:
-            speed = {"speed_schedule": [list(e) for e in ecfg.speed_schedule]}
-        options.update(speed_range_m_s=[], speed_changes=0, speed_stop_share=0.0, **speed)
-    return options
+    speed = {} if ecfg.speed_m_s is None else {"target_speed_m_s": ecfg.speed_m_s, "speed_schedule": []}
+    if ecfg.speed_schedule:
+        speed = {"speed_schedule": [list(e) for e in ecfg.speed_schedule]}
+    return {**options, "speed_range_m_s": [], "speed_changes": 0, "speed_stop_share": 0.0, **speed}
 
 
 def _validated(cls: type, *layers: Any) -> Any:
