@@ -38,8 +38,9 @@ class TrainingEvaluator:
     block, disjoint from ``pamrun eval``'s held-out ``eval.seed``) with the evaluation's start
     noise, episode length and commanded speed (:func:`pamrun.task.spec.eval_env_options`: a run
     that trains over drawn speeds is selected at ``eval.speed_m_s``, else its own v*), the same
-    starts every time, in this process with one torch thread, and returns the aggregate (:func:`pamrun.evaluation.episodes.aggregate`) with its cost ``eval_s``
-    and its first episode with its per-step arrays (``first_episode``; the gait figure's).
+    starts every time, in this process with one torch thread, and returns the aggregate
+    (:func:`pamrun.evaluation.episodes.aggregate`) with its cost ``eval_s`` and its first episode
+    with its per-step arrays (``first_episode``; the gait figure's).
 
     **Selection under perturbation** (``train.select_perturbations``): once a nominal episode
     passes, the call also runs ``train.select_episodes`` episodes (seeds ``eval.selection_seed
