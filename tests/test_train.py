@@ -467,6 +467,41 @@ def test_the_gait_stage_follows_the_first_evaluation_that_passes_every_episode(c
     assert (again.stage, again.since, again.gait_since) == ("gait", 60000, 80000)
 
 
+def test_the_gait_stage_can_start_at_a_march_that_covers_a_distance(cfg):
+    """train.gait_from_distance_m: the gait stage starts at the walking stage's first evaluation in
+    which every episode stands the whole episode and the shortest covers that distance, passes or
+    not; a fall or a shorter episode does not start it, and a resume's replay finds the same."""
+    from pamrun.learning.curriculum import WalkCurriculum
+
+    cfg.train.walk_weights, cfg.train.gait_weights = {"kspeed": 4.0}, {"kflight": 20.0, "kstep": 100.0}
+    cfg.train.gait_from_distance_m = 2.0
+    curriculum, rows = WalkCurriculum(cfg), []
+    for frames, stand, distance_min, stage in ((60000, 1.0, 0.1, "walk"),  # stands still: walking starts
+                                               (70000, 1.0, 0.3, "walk"),  # stands, but barely moves
+                                               (80000, 0.9, 2.5, "walk"),  # far, but one episode fell
+                                               (90000, 1.0, 1.9, "walk"),
+                                               (100000, 1.0, 2.1, "gait")):  # no walk test passed
+        curriculum.observe(stand, frames, 0.0, distance_min)
+        rows.append({"frames": frames, "stand_rate": stand, "walk_pass_rate": 0.0, "distance_min": distance_min})
+        assert curriculum.stage == stage, frames
+    assert curriculum.gait_since == 100000 and curriculum.transform.delta["kstep"] == 100.0 - cfg.reward.kstep
+    assert "train.gait_from_distance_m" in curriculum.describe()
+    again = WalkCurriculum(cfg)
+    again.replay(rows)
+    assert (again.stage, again.gait_since) == ("gait", 100000)
+
+
+def test_gait_from_distance_needs_gait_weights_and_a_positive_distance():
+    from pamrun.config import ConfigError
+
+    for overrides in (("experiment=walker", "train.gait_from_distance_m=2"),
+                      ("experiment=gait", "train.gait_from_distance_m=0"),
+                      ("experiment=gait", "train.gait_from_distance_m=-1")):
+        with pytest.raises(ConfigError, match=r"train\.gait_from_distance_m"):
+            to_object(compose_config(*overrides))
+    assert to_object(compose_config("experiment=gait", "train.gait_from_distance_m=2")).train.gait_from_distance_m == 2.0
+
+
 def test_adapted_weights_rise_while_the_walk_holds_and_fall_back_when_it_fails(cfg):
     """train.adapt_weights: in the gait stage each all-pass evaluation multiplies them by
     train.adapt_factor up to their caps, each other divides them down to the gait stage's own;

@@ -123,6 +123,10 @@ class TrainConfig:
     # the walk test, these weights (any reward key, e.g. {kflight: 20}) replace the walking stage's,
     # re-weighted the same way. {} = no third stage
     gait_weights: dict[str, float] = field(default_factory=dict)
+    # The gait stage's milestone: None = the walk test (above); a distance = the walking stage's
+    # first evaluation in which every episode lasts the full episode and covers at least this many
+    # metres (e.g. 2.0: a march at 0.2 m/s that never passes the walk test's 7 m still moves on)
+    gait_from_distance_m: Optional[float] = None
     # Costs raised while the walk holds (Schumacher et al. 2025, iScience 28:112203, raise an
     # effort cost while performance holds and lower it when it drops): in the gait stage, each
     # evaluation in which every episode passes the walk test multiplies these weights by
@@ -177,6 +181,11 @@ class TrainConfig:
                  "adapts the gait stage's weights: needs train.gait_weights")
         _require(math.isfinite(self.adapt_factor) and self.adapt_factor > 1, "adapt_factor",
                  f"must be > 1, got {self.adapt_factor}")
+        _require(self.gait_from_distance_m is None or self.gait_weights, "gait_from_distance_m",
+                 "starts the gait stage: needs train.gait_weights")
+        _require(self.gait_from_distance_m is None
+                 or (math.isfinite(self.gait_from_distance_m) and self.gait_from_distance_m > 0),
+                 "gait_from_distance_m", f"must be a finite distance > 0 (None = the walk test), got {self.gait_from_distance_m}")
         _require(not self.gait_weights or self.walk_weights or self.walk_kvx is not None, "gait_weights",
                  "is the stage after walking: needs train.walk_weights or train.walk_kvx")
         _require(not self.walk_weights or self.eval_every_frames > 0, "walk_weights",

@@ -16,7 +16,8 @@ optimises the env's reward; from it on, the forward weight is ``walk_kvx`` inste
 function of the run's evaluations (``evals.csv``), so a resumed run takes it up where it was.
 A run from a trained agent (``train.init_from``) is at the walking stage from its first frame.
 ``train.gait_weights`` adds a third stage, gait: from the walking stage's first evaluation in
-which every episode passes the walk test, its weights replace those of the walking stage (a
+which every episode passes the walk test (or, with ``train.gait_from_distance_m``, stands the
+whole episode and covers that distance), its weights replace those of the walking stage (a
 run that first learns to walk, however it can, then how: a flight or a crouch charged from the
 start keeps it from learning to walk at all). In it, ``train.adapt_weights`` rise by
 ``train.adapt_factor`` after each evaluation in which every episode passes, up to their caps, and
@@ -121,19 +122,29 @@ class WalkCurriculum:
     def replay(self, rows: list[dict]) -> None:
         """Take up the stage a resumed run was in, from its evals.csv rows."""
         for row in rows:
-            self.observe(float(row["stand_rate"]), int(row["frames"]), float(row.get("walk_pass_rate") or 0.0))
+            self.observe(float(row["stand_rate"]), int(row["frames"]), float(row.get("walk_pass_rate") or 0.0),
+                         float(row.get("distance_min") or 0.0))
 
-    def observe(self, stand_rate: float, frames: int, walk_pass_rate: float = 0.0) -> bool:
+    def observe(self, stand_rate: float, frames: int, walk_pass_rate: float = 0.0, distance_min: float = 0.0) -> bool:
         """Take an evaluation into account; True when it starts a stage: walking at the "stand,
         learned" milestone, gait (with ``train.gait_weights``) at the walking stage's first
-        evaluation in which every episode passes the walk test."""
+        evaluation that meets :meth:`gait_milestone`."""
         if self.stage == "stand" and self.active and stands_learned(stand_rate, frames, self.cfg):
             return self._start("walk", frames)
-        if self.stage == "walk" and self.cfg.train.gait_weights and walk_pass_rate >= 1.0:
+        if self.stage == "walk" and self.cfg.train.gait_weights and self.gait_milestone(stand_rate, walk_pass_rate,
+                                                                                         distance_min):
             return self._start("gait", frames)
         if self.stage == "gait" and self.cfg.train.adapt_weights:
             self._adapt(walk_pass_rate >= 1.0)
         return False
+
+    def gait_milestone(self, stand_rate: float, walk_pass_rate: float, distance_min: float) -> bool:
+        """Every episode passes the walk test, or with ``train.gait_from_distance_m`` every episode
+        lasts the full episode and its shortest covers that distance."""
+        metres = self.cfg.train.gait_from_distance_m
+        if metres is None:
+            return walk_pass_rate >= 1.0
+        return stand_rate >= 1.0 and distance_min >= metres
 
     def _adapt(self, holds: bool) -> None:
         """``train.adapt_weights``: each one times ``train.adapt_factor`` (up to its cap) after an
@@ -178,8 +189,11 @@ class WalkCurriculum:
     def describe(self) -> str:
         changed = ", ".join(f"{k} {getattr(self.cfg.reward, k):g} -> {w:g}" for k, w in self.changed().items())
         if self.stage == "gait":
+            metres = self.cfg.train.gait_from_distance_m
+            when = ("first passed the walk test" if metres is None else
+                    f"first stood the whole episode and covered {metres:g} m (train.gait_from_distance_m)")
             return (f"Gait stage of the curriculum since {self.gait_since} frames, when every evaluation episode "
-                    f"first passed the walk test: the learner's weights {changed} (train.gait_weights over "
+                    f"{when}: the learner's weights {changed} (train.gait_weights over "
                     f"train.walk_weights; the env keeps reward.*).{self._describe_adapt()}")
         why = ("from the first frame, a trained agent's run (train.init_from)" if self.cfg.train.init_from else
                f"since {self.since} frames, when it first stood in every evaluation episode")

@@ -29,7 +29,9 @@ def header_table(cfg: Config, out: Path):
         ("reward", ", ".join(f"{k} {w:g}" for k, w in asdict(cfg.reward).items())  # every weight
                    + (f"; kvx {t.walk_kvx:g} once it stands (train.walk_kvx)" if t.walk_kvx is not None else "")
                    + "".join(f"; {k} {w:g} once it stands" for k, w in t.walk_weights.items())
-                   + "".join(f"; {k} {w:g} once every episode walks" for k, w in t.gait_weights.items())),
+                   + "".join(f"; {k} {w:g} once every episode "
+                             + ("walks" if t.gait_from_distance_m is None else f"stands and covers {t.gait_from_distance_m:g} m")
+                             for k, w in t.gait_weights.items())),
         ("randomised", (f"{t.randomize_prob:.0%} of episodes, {t.randomize_count} of: "
                         + ", ".join(n + (f" x{t.randomize_weights[n]:g}" if n in t.randomize_weights else "")
                                     + (f" to {t.randomize_reaches[n]:g}" if n in t.randomize_reaches else "")

@@ -323,7 +323,8 @@ class Run:
 
     def evaluate(self) -> dict:
         result = self.evals.run(self.learner.actor.module, self.learner.policy_state(), self.cfg, self.counters())
-        if self.curriculum.observe(result["stand_rate"], self.frames, result["walk_pass_rate"]):
+        if self.curriculum.observe(result["stand_rate"], self.frames, result["walk_pass_rate"],
+                                   result["distance_min"]):
             for key, weight in self.curriculum.changed().items():
                 self.log.writer.add_scalar(f"curriculum/{key}", weight, self.frames)
             self.info["gait_weights_from_frames" if self.curriculum.stage == "gait" else "walk_kvx_from_frames"] = self.frames
