@@ -491,6 +491,22 @@ def test_the_gait_stage_can_start_at_a_march_that_covers_a_distance(cfg):
     assert (again.stage, again.gait_since) == ("gait", 100000)
 
 
+def test_adapted_weights_hold_on_the_distance_milestone(cfg):
+    """With train.gait_from_distance_m, train.adapt_weights rise after each evaluation in which every
+    episode stands and covers the distance (walk test passed or not) and fall back after a fall or
+    a shorter march."""
+    from pamrun.learning.curriculum import WalkCurriculum
+
+    cfg.train.walk_weights, cfg.train.gait_weights = {"kspeed": 4.0}, {"kstep": 10.0}
+    cfg.train.gait_from_distance_m, cfg.train.adapt_weights, cfg.train.adapt_factor = 2.0, {"kstep": 100.0}, 2.0
+    curriculum, seen = WalkCurriculum(cfg), []
+    for frames, stand, distance_min in ((60000, 1.0, 0.0), (70000, 1.0, 2.5), (80000, 1.0, 2.5), (90000, 1.0, 3.0),
+                                        (100000, 0.9, 3.0), (110000, 1.0, 1.0)):
+        curriculum.observe(stand, frames, 0.0, distance_min)
+        seen.append(curriculum.adapted()["kstep"] if curriculum.stage == "gait" else None)
+    assert seen == [None, 10.0, 20.0, 40.0, 20.0, 10.0]
+
+
 def test_gait_from_distance_needs_gait_weights_and_a_positive_distance():
     from pamrun.config import ConfigError
 

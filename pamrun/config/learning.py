@@ -129,9 +129,9 @@ class TrainConfig:
     gait_from_distance_m: Optional[float] = None
     # Costs raised while the walk holds (Schumacher et al. 2025, iScience 28:112203, raise an
     # effort cost while performance holds and lower it when it drops): in the gait stage, each
-    # evaluation in which every episode passes the walk test multiplies these weights by
-    # adapt_factor, up to the value given here; one in which any fails divides them, down to the
-    # gait stage's own (which must be > 0). E.g. {kv: 1.0, kda: 4.0}. {} = off
+    # evaluation that meets the gait stage's milestone (the walk test, or gait_from_distance_m)
+    # multiplies these weights by adapt_factor, up to the value given here; one that does not
+    # divides them, down to the gait stage's own (which must be > 0). E.g. {kv: 1.0, kda: 4.0}. {} = off
     adapt_weights: dict[str, float] = field(default_factory=dict)
     adapt_factor: float = 1.25
     # Domain randomisation (pamrun/task/randomize.py): each episode, with probability randomize_prob,

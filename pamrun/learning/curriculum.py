@@ -20,8 +20,8 @@ which every episode passes the walk test (or, with ``train.gait_from_distance_m`
 whole episode and covers that distance), its weights replace those of the walking stage (a
 run that first learns to walk, however it can, then how: a flight or a crouch charged from the
 start keeps it from learning to walk at all). In it, ``train.adapt_weights`` rise by
-``train.adapt_factor`` after each evaluation in which every episode passes, up to their caps, and
-fall back after one in which any fails: the largest costs the walk bears.
+``train.adapt_factor`` after each evaluation that meets that milestone again, up to their caps,
+and fall back after one that does not: the largest costs the walk bears.
 """
 
 from __future__ import annotations
@@ -135,7 +135,7 @@ class WalkCurriculum:
                                                                                          distance_min):
             return self._start("gait", frames)
         if self.stage == "gait" and self.cfg.train.adapt_weights:
-            self._adapt(walk_pass_rate >= 1.0)
+            self._adapt(self.gait_milestone(stand_rate, walk_pass_rate, distance_min))
         return False
 
     def gait_milestone(self, stand_rate: float, walk_pass_rate: float, distance_min: float) -> bool:
@@ -148,8 +148,9 @@ class WalkCurriculum:
 
     def _adapt(self, holds: bool) -> None:
         """``train.adapt_weights``: each one times ``train.adapt_factor`` (up to its cap) after an
-        evaluation in which every episode passes, divided by it (down to the gait stage's own) after
-        one in which any fails."""
+        evaluation that meets the gait stage's milestone (:meth:`gait_milestone`: every episode
+        passes, or stands and covers ``train.gait_from_distance_m``), divided by it (down to the gait
+        stage's own) after one that does not."""
         factor = self.cfg.train.adapt_factor
         for key, cap in self.cfg.train.adapt_weights.items():
             weight = self.gait_weights[key]
@@ -160,7 +161,7 @@ class WalkCurriculum:
         if not self.cfg.train.adapt_weights:
             return ""
         caps = ", ".join(f"{k} {self.adapted_from[k]:g} up to {cap:g}" for k, cap in self.cfg.train.adapt_weights.items())
-        return (f" While every evaluation episode passes, these rise x{self.cfg.train.adapt_factor:g} an evaluation, "
+        return (f" While every evaluation meets the gait stage's milestone, these rise x{self.cfg.train.adapt_factor:g} an evaluation, "
                 f"and fall back when one fails (train.adapt_weights): {caps}; TensorBoard curriculum/*.")
 
     def adapted(self) -> dict[str, float]:
