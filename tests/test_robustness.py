@@ -16,6 +16,7 @@ from pamrun.evaluation.evaluate import check_config
 from pamrun.evaluation.evaluator import TrainingEvaluator
 from pamrun.evaluation.ranking import held_out, selection_block
 from pamrun.learning.checkpoints import load_agent
+from pamrun.task.criteria import kept_command
 from pamrun.task.env import PamWalkerEnv
 from pamrun.task.observation import N_JOINTS, OBS_BASE, OBS_SIZE
 from tests.conftest import compose_config, run_pamrun
@@ -126,6 +127,51 @@ def test_selection_under_perturbation_counts_the_perturbed_episodes_once_a_nomin
 def test_selection_under_perturbation_is_checked_with_the_config(override, key):
     with pytest.raises(ConfigError, match=key):
         to_object(compose_config("train.select_perturbations=[lag_x2]", override))
+
+
+def test_selection_on_a_speed_schedule_counts_the_episodes_that_keep_to_it():
+    actor = torch.nn.Sequential(torch.nn.Linear(OBS_SIZE, N_JOINTS), torch.nn.Tanh())
+    torch.nn.init.zeros_(actor[0].weight), torch.nn.init.zeros_(actor[0].bias)  # holds its pressures: stands
+    overrides = ("train.eval_episodes=2", "eval.episode_s=2.0", "eval.walk_duration_s=2.0",
+                 "train.select_schedule=[[0,0],[0.25,0.6]]", "train.select_schedule_episodes=3")
+    cfg = to_object(compose_config(*overrides, "train.select_schedule=[[0,0]]"))
+    cfg.eval.walk_distance_m = -1.0  # (a config refuses < 0: set past its check) the nominal block passes
+    told_to_stand = TrainingEvaluator(cfg)
+    result = told_to_stand(actor)
+    told_to_stand.close()
+    # told 0 for 2 s, it stands still after 1.5 s of settling: 2 nominal passes and 3 kept schedules
+    assert result["select_schedule_rate"] == 1.0 and result["select_pass_rate"] == 1.0
+    assert result["episodes"] == 2  # the nominal aggregate is the nominal block's
+    cfg.eval.walk_distance_m = 100.0
+    never = TrainingEvaluator(cfg)
+    result = never(actor)
+    never.close()
+    assert result["walk_pass_rate"] == 0.0 and np.isnan(result["select_schedule_rate"])  # no nominal pass: not run
+    cfg = to_object(compose_config(*overrides))
+    assert TrainingEvaluator(cfg).scheduled.env_cfg.speed_schedule == [[0.0, 0.0], [0.25, 0.6]]
+
+
+@pytest.mark.parametrize("changes, kept", [({}, True), ({"fell": True, "duration_s": 4.0}, False),
+                                           ({"stand_still_feet_down_share": 0.85}, False),
+                                           ({"stand_still_drift_m": 0.25}, False),
+                                           ({"stand_still_feet_down_share": float("nan"),
+                                             "stand_still_drift_m": float("nan")}, True)])
+def test_an_episode_keeps_to_its_schedule_when_it_stands_still_where_told_0(changes, kept):
+    cfg = to_object(compose_config())
+    episode = {"fell": False, "physics_error": False, "duration_s": cfg.eval.walk_duration_s,
+               "stand_still_feet_down_share": 0.95, "stand_still_drift_m": 0.1, **changes}
+    assert kept_command(episode, cfg.eval) is kept
+
+
+@pytest.mark.parametrize("override, key", [("train.select_schedule_episodes=0", "select_schedule"),
+                                           ("train.select_schedule_episodes=-1", "select_schedule_episodes"),
+                                           ("train.select_schedule=[[0,-0.5]]", "train.select_schedule"),
+                                           ("train.select_schedule=[[0,0],[10.5,1.0]]", "train.select_schedule"),
+                                           ("train.eval_every_frames=0", "select_schedule")])
+def test_selection_on_a_speed_schedule_is_checked_with_the_config(override, key):
+    with pytest.raises(ConfigError, match=key):
+        to_object(compose_config("train.select_schedule=[[0,0],[2.5,1.0]]", "train.select_schedule_episodes=3",
+                                 override))
 
 
 def test_training_keeps_the_agent_that_holds_under_perturbation():

@@ -50,7 +50,7 @@ from pamrun.config.robot import (
     check_muscle_stretch,
     check_toe_stiffness,
 )
-from pamrun.config.task import ENV_SECTIONS, EnvConfig, RewardConfig
+from pamrun.config.task import ENV_SECTIONS, EnvConfig, RewardConfig, check_speed_schedule
 
 __all__ = ["CONF_DIR", "SPRING_FILE", "CAMERAS", "JOB_METRICS", "RANK_METRICS", "FORCE_LAW_NAMES", "DYNAMICS_NAMES", "ConfigError",
            "Config", "LEG_JOINTS", "RegulatorConfig", "SpringConfig", "MuscleConfig", "JointAngles", "JointCounts",
@@ -90,6 +90,8 @@ class Config:
             for name in getattr(self.train, key):
                 _require(name in self.eval.perturbations, f"train.{key}", f"unknown perturbation {name!r}; "
                          f"known (eval.perturbations): {', '.join(self.eval.perturbations)}")
+        self.train.select_schedule = check_speed_schedule(self.train.select_schedule, self.eval.episode_s,
+                                                          "train.select_schedule", "eval.episode_s")
         for key, weight in (("reward.kgait", self.reward.kgait), ("train.walk_weights.kgait",
                                                                   self.train.walk_weights.get("kgait", 0.0))):
             _require(not weight or self.env.gait_period_s > 0, key,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Any, Optional
 
 from pamrun.config.checks import _non_negative, _positive, _require
 from pamrun.config.task import RewardConfig
@@ -111,6 +111,12 @@ class TrainConfig:
     # A name's own count (others select_episodes), e.g. {friction_low: 10}: 3 episodes cannot tell
     # a 50 % agent from a 90 % one (3 of 3 passes: chance 0.13 against 0.73)
     select_episodes_of: dict[str, int] = field(default_factory=dict)
+    # ... and, with select_schedule_episodes > 0, that many on this speed schedule ([[time_s, speed_m_s],
+    # ...], as eval.speed_schedule), each counted as passed when it does not fall and stands still where
+    # told 0 (pamrun.task.criteria.kept_command): an agent that walks but cannot stop is not selected.
+    # e.g. [[0, 0], [2.5, 0.6], [5, 1.2], [7.5, 0]]; [] = none
+    select_schedule: list[Any] = field(default_factory=list)
+    select_schedule_episodes: int = 0
     stop_on_walk: bool = False  # stop the run once an evaluation passes the walk test (status: walked)
     # Curriculum, stand then walk: once an evaluation after the actor's first update stands in
     # every episode (the "stand, learned" milestone), the learner's reward weighs the forward
@@ -160,6 +166,12 @@ class TrainConfig:
         _check_by_name(self.select_episodes_of, "select_episodes_of", self.select_perturbations,
                        "select_perturbations", lambda n: n >= 1, "must be >= 1")
         _require(not (self.select_perturbations and self.eval_every_frames == 0), "select_perturbations",
+                 "needs evaluations during training (train.eval_every_frames > 0)")
+        _require(self.select_schedule_episodes >= 0, "select_schedule_episodes",
+                 f"must be >= 0, got {self.select_schedule_episodes}")
+        _require(bool(self.select_schedule) == bool(self.select_schedule_episodes), "select_schedule",
+                 "comes with select_schedule_episodes > 0 (both set, or neither)")
+        _require(not (self.select_schedule and self.eval_every_frames == 0), "select_schedule",
                  "needs evaluations during training (train.eval_every_frames > 0)")
         _require(not (self.stop_on_walk and self.eval_every_frames == 0), "stop_on_walk",
                  "needs evaluations during training (train.eval_every_frames > 0)")

@@ -4,6 +4,7 @@ episode (for TensorBoard: :mod:`pamrun.evaluation.board`)."""
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any
 
@@ -13,7 +14,7 @@ import torch
 from pamrun.evaluation.episodes import aggregate, run_episode, torch_threads
 from pamrun.evaluation.metrics import GaitSpec
 from pamrun.evaluation.ranking import rank
-from pamrun.task.criteria import walk_passed
+from pamrun.task.criteria import kept_command, walk_passed
 from pamrun.task.spec import EnvSpec, eval_env_options
 
 VIDEO_S = 4.0  # seconds of the episode a video shows (from its start)
@@ -48,6 +49,10 @@ class TrainingEvaluator:
     of the suite, and ``select_pass_rate`` is the walk pass rate over all the episodes it ran
     (without them: ``walk_pass_rate``). ``better`` ranks by it first, then by ``eval.rank_by``:
     among agents that all walk the nominal block, the one that holds under perturbation is kept.
+    **Selection on a speed schedule** (``train.select_schedule``): in the same case it also runs
+    ``train.select_schedule_episodes`` episodes (the same seeds) on that schedule, each counted in
+    ``select_pass_rate`` as passed when it kept to it (:func:`pamrun.task.criteria.kept_command`: no
+    fall, standing still where told 0 m/s); ``select_schedule_rate`` is their share (NaN when none ran).
     The nominal aggregate is unchanged (the curriculum reads it).
     Anchors: Stable-Baselines3's ``EvalCallback``, TorchRL's ``Evaluator``.
 
@@ -66,6 +71,9 @@ class TrainingEvaluator:
                                                self.env.env_cfg.control_dt_s)
         self.perturbed = [self.spec.perturbed(cfg.eval.perturbations[name], f"eval.perturbations.{name}").make()
                           for name in t.select_perturbations]
+        self.scheduled = (self.spec.with_values(env={"speed_schedule": t.select_schedule}).make()
+                          if t.select_schedule else None)
+        self.schedule_episodes = t.select_schedule_episodes
         self.camera, self.no_video = None, ""
 
     def __call__(self, actor) -> dict[str, Any]:
@@ -79,12 +87,15 @@ class TrainingEvaluator:
         with torch.no_grad(), torch_threads(1):
             episodes = block(self.env, self.episodes, keep_first=True)
             result = aggregate(episodes, self.ecfg)
+            scheduled = []
             if result["walk_passes"]:
                 episodes += [e for env, n in zip(self.perturbed, self.select_counts) for e in block(env, n)]
+                scheduled = block(self.scheduled, self.schedule_episodes) if self.scheduled else []
         seeds = [self.ecfg.selection_seed, self.ecfg.selection_seed + self.episodes - 1]
-        select = float(np.mean([walk_passed(e, self.ecfg) for e in episodes]))
-        return {**result, "select_pass_rate": select, "seeds": seeds, "first_episode": episodes[0],
-                "eval_s": time.perf_counter() - start}
+        kept = [kept_command(e, self.ecfg) for e in scheduled]
+        select = float(np.mean([walk_passed(e, self.ecfg) for e in episodes] + kept))
+        return {**result, "select_pass_rate": select, "select_schedule_rate": float(np.mean(kept)) if kept else math.nan,
+                "seeds": seeds, "first_episode": episodes[0], "eval_s": time.perf_counter() - start}
 
     def open_camera(self):
         """The env :meth:`video` renders in, checked by rendering its first frame; None, with
@@ -128,10 +139,10 @@ class TrainingEvaluator:
         if best is None:
             return True
         best = {"select_pass_rate": best["walk_pass_rate"], **best, "agent": "0-best"}
-        by = ["select_pass_rate"] * bool(self.perturbed) + list(self.ecfg.rank_by)
+        by = ["select_pass_rate"] * bool(self.perturbed or self.scheduled) + list(self.ecfg.rank_by)
         ranked = rank([best, {**new, "agent": "1-new"}], by)
         return ranked[0]["agent"] == "1-new"
 
     def close(self) -> None:
-        for env in (self.env, *self.perturbed, *([self.camera] if self.camera else [])):
+        for env in (self.env, *self.perturbed, *[e for e in (self.scheduled, self.camera) if e]):
             env.close()

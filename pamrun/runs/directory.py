@@ -47,7 +47,7 @@ EPISODE_FIELDS = ("episode", "frames", "reward", "avg_reward", "q0", "length", "
                   "physics_error")
 EVAL_FIELDS = ("frames", "episodes", "wall_time_s", "eval_s", "walk_pass_rate", "stand_rate", "fall_rate",
                "distance_mean", "distance_min", "duration_mean", "max_abs_y_max", "return_mean",
-               "pressure_change_mean", "select_pass_rate", "best",
+               "pressure_change_mean", "select_pass_rate", "select_schedule_rate", "best",
                # gait means over the nominal episodes (pamrun.evaluation.metrics), NaN where undefined
                "speed_mean", "step_frequency_hz_mean", "stride_length_m_mean", "duty_factor_mean",
                "step_time_symmetry_mean", "step_length_symmetry_mean", "stop_share_gait_max_mean",

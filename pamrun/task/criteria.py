@@ -43,6 +43,30 @@ def walk_passed(episode: dict, ecfg) -> bool:
             and episode["distance_m"] >= ecfg.walk_distance_m)
 
 
+# Standing still where told 0 m/s, in the settled stretches pamrun.evaluation.tracking measures
+# (stand_still_*): both feet down at least this share of the time, the torso moving at most this far.
+# Issue 38's stand-still targets (a robot on a test stand waits without stepping or creeping).
+STAND_STILL_FEET_DOWN_SHARE = 0.9
+STAND_STILL_DRIFT_M = 0.2
+
+
+def stood_still(episode: dict) -> bool:
+    """Both feet down at least ``STAND_STILL_FEET_DOWN_SHARE`` of the settled v* = 0 time and a drift
+    of at most ``STAND_STILL_DRIFT_M`` there; True where those are NaN or absent: never told 0
+    long enough to settle, or fallen before it (:func:`stood` judges a fall)."""
+    share, drift = episode.get("stand_still_feet_down_share"), episode.get("stand_still_drift_m")
+    if share is None or share != share:
+        return True
+    return share >= STAND_STILL_FEET_DOWN_SHARE and drift <= STAND_STILL_DRIFT_M
+
+
+def kept_command(episode: dict, ecfg) -> bool:
+    """An episode on a speed schedule (``train.select_schedule``) that kept to it: it lasted
+    ``ecfg.walk_duration_s`` without a fall or blow-up (:func:`stood`) and stood still where told
+    0 m/s (:func:`stood_still`). Its speed is not judged: the walk test judges that."""
+    return stood(episode, ecfg) and stood_still(episode)
+
+
 def actor_learns_from(cfg: Config) -> int:
     """Frames at the run's first actor update (after its random phase and critic warm-up); -1 for
     a run that starts from a trained agent (``train.init_from``): its actor learned before frame 0."""

@@ -88,6 +88,9 @@ class TrainingProgress:
         stand = round(result["stand_rate"] * result["episodes"])
         self.eval_text = (f"eval: stand {stand}/{result['episodes']} walk {pass_text(result)}"
                           f" targets {result.get('walk_targets_met', 0)}/{len(WALK_TARGETS)}")
+        kept = result.get("select_schedule_rate", float("nan"))
+        if kept == kept:  # the selection's speed schedule ran (train.select_schedule)
+            self.eval_text += f" schedule {kept:.0%}"
         self.counters = dict(counters)
         self.show(now=True)
 

@@ -385,8 +385,9 @@ class Evaluations:
         self.log.append({**result, "frames": counters["frames"], "episodes": counters["episodes"],
                          "wall_time_s": round(counters["wall_time_s"], 3), "best": int(best)})
         for key in ("walk_pass_rate", "stand_rate", "fall_rate", "distance_mean", "duration_mean",
-                    "max_abs_y_max", "return_mean", "select_pass_rate", "eval_s"):
-            self.writer.add_scalar(f"eval/{key}", result[key], counters["frames"])
+                    "max_abs_y_max", "return_mean", "select_pass_rate", "select_schedule_rate", "eval_s"):
+            if result[key] == result[key]:  # NaN: not measured (select_schedule_rate without a schedule)
+                self.writer.add_scalar(f"eval/{key}", result[key], counters["frames"])
         self.show(actor, result, counters["frames"])
         return result
 
