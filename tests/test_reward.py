@@ -16,6 +16,7 @@ from pamrun.evaluation.metrics import GaitSpec, foot_slip_m_s, knee_swing_stop_s
 from pamrun.physics.actuation import muscle_counts
 from pamrun.physics.body import JOINTS
 from pamrun.task import reward as reward_mod
+from pamrun.task.env import PamWalkerEnv
 from pamrun.task.measures import KNEES, at_stops, ground_point_shift_m, sole_tilt_rad, stop_bounds, stop_share
 from pamrun.task.reward import REWARD_KEYS, TERMS, Reward, check_terms
 from tests.test_train import TINY, train_here
@@ -289,3 +290,26 @@ def test_upright_term_charges_the_torsos_tilt_and_not_its_heading():
     turned = tilted(1.0)["reward_unweighted"]["kupright"]
     assert turned == pytest.approx(tilted(0.0)["reward_unweighted"]["kupright"], abs=1e-6)
     env.close()
+
+
+def test_track_term_pays_kspeeds_bell_at_its_own_narrower_sigma():
+    """reward.ktrack: exp(-((Vx - v*) / env.track_sigma_m_s)^2) of the torso's forward speed after the
+    step. Lifted and moving at 0.8 m/s when told 1.0, it earns about half of its top at sigma 0.25 (kspeed,
+    at sigma 0.5: 85 %); at the same sigma the two terms are the same."""
+    def step_at(vx: float, sigma: float) -> tuple[float, dict]:
+        env = PamWalkerEnv(env={"target_speed_m_s": 1.0, "track_sigma_m_s": sigma}, features=["kspeed", "ktrack"])
+        env.reset(seed=0)
+        env.data.qpos[2] += 1.0  # in the air: nothing slows it in one step
+        env.data.qvel[:] = 0.0
+        env.data.qvel[0] = vx
+        info = env.step(np.zeros(env.action_space.shape))[4]
+        speed = float(env.data.qvel[0])
+        env.close()
+        return speed, info["reward_unweighted"]
+
+    speed, f = step_at(0.8, 0.25)
+    assert speed == pytest.approx(0.8, abs=0.01)
+    assert f["ktrack"] == pytest.approx(math.exp(-((speed - 1.0) / 0.25) ** 2), rel=1e-6)
+    assert 0.45 < f["ktrack"] < 0.6 < 0.8 < f["kspeed"] < 0.9
+    _, same = step_at(0.8, 0.5)
+    assert same["ktrack"] == same["kspeed"]

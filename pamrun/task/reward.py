@@ -105,6 +105,12 @@ def speed(t: Transition) -> float:
     return math.exp(-(((t.torso[6] - t.episode.target_speed_m_s) / t.env.env_cfg.speed_sigma_m_s) ** 2))
 
 
+@term("ktrack")
+def narrow_speed(t: Transition) -> float:
+    """kspeed's pay at ``env.track_sigma_m_s``: a narrower bell around v*."""
+    return math.exp(-(((t.torso[6] - t.episode.target_speed_m_s) / t.env.env_cfg.track_sigma_m_s) ** 2))
+
+
 def _ground_point_speeds(t: Transition, before: bool) -> float:
     """The summed horizontal speed [m/s] over the step of the ground points of the feet on the ground
     at its end and, at its start, on it (``before``) or off it."""
