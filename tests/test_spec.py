@@ -81,6 +81,16 @@ def test_a_spec_is_its_own_copy_and_changes_into_a_new_one():
                                       f"reward.kv {spec.reward.kv} -> 0.5"]
 
 
+def test_a_buffer_gathered_under_other_command_draws_is_still_the_tasks():
+    """A fine-tune (train.init_from) keeps its source's replay buffer where only the drawn speed
+    commands differ (each transition carries its own v*), not where a transition's reward differs."""
+    commanded = EnvSpec.from_config(to_object(compose_config("experiment=command")))
+    draws = commanded.with_values(env={"speed_stop_share": 0.3, "speed_changes": 2, "speed_range_m_s": [0.0, 1.4]})
+    assert len(commanded.changes_to(draws)) == 3 and commanded.transition_changes_to(draws) == []
+    narrower = draws.with_values(env={"speed_sigma_m_s": 0.25})
+    assert commanded.transition_changes_to(narrower) == ["env.speed_sigma_m_s 0.5 -> 0.25"]
+
+
 @pytest.mark.parametrize("perturbation, key", [
     (Perturbation(scale={"body": {"friction_static": 0.5}}), None),  # x0.5: possible
     (Perturbation(values={"body": {"friction_static": -0.1}}), "eval.perturbations.p.values.body.friction_static"),

@@ -24,6 +24,11 @@ from pamrun.config import (
 )
 from pamrun.task.env import PamWalkerEnv
 
+# env keys that change only which speed commands the episodes draw: a transition carries its own v*
+# (in its observation, and in its reward's terms), so a replay buffer gathered under other values
+# is still this task's.
+COMMAND_DRAWS = ("env.speed_range_m_s", "env.speed_changes", "env.speed_stop_share")
+
 
 @dataclass(frozen=True)
 class EnvSpec:
@@ -67,6 +72,11 @@ class EnvSpec:
         """``key old -> new`` for each key of the sections in which ``other`` differs from this spec."""
         ours, theirs = flatten(self.to_dict()), flatten(other.to_dict())
         return [f"{k} {ours.get(k)} -> {theirs[k]}" for k in sorted(theirs) if ours.get(k) != theirs[k]]
+
+    def transition_changes_to(self, other: EnvSpec) -> list[str]:
+        """:meth:`changes_to` less :data:`COMMAND_DRAWS`: the changes that make a transition gathered
+        in this spec's env another task's in ``other``'s (a replay buffer that may not be reused)."""
+        return [c for c in self.changes_to(other) if c.split(" ", 1)[0] not in COMMAND_DRAWS]
 
     def sections(self) -> dict[str, Any]:
         """Section name -> its dataclass: PamWalker-v0's keyword arguments."""

@@ -201,7 +201,7 @@ def start_from(cfg: Config, learner: networks.Learner, buffer, console) -> None:
         raise SystemExit(f"pamrun: train.init_from: {path}: its networks do not fit algo.* ({first})") from None
     record, config = state.get("buffer"), state.get("config") or {}
     if record is not None:
-        differ = EnvSpec.from_dict(config).changes_to(EnvSpec.from_config(cfg))  # its transitions' env is not ours
+        differ = EnvSpec.from_dict(config).transition_changes_to(EnvSpec.from_config(cfg))  # its env is not ours
         computed = (set(record["terms"]) if "terms" in record
                     else _computed_before_terms_were_saved(path, config.get("reward", {})))
         uncarried = [k for k in reweighted_terms(cfg) if k not in computed]
