@@ -45,7 +45,7 @@ def walk_passed(episode: dict, ecfg) -> bool:
 
 # Standing still where told 0 m/s, in the settled stretches pamrun.evaluation.tracking measures
 # (stand_still_*): both feet down at least this share of the time, the torso moving at most this far.
-# Issue 38's stand-still targets (a robot on a test stand waits without stepping or creeping).
+# The walk's stand-still targets: a robot on a test stand waits without stepping or creeping.
 STAND_STILL_FEET_DOWN_SHARE = 0.9
 STAND_STILL_DRIFT_M = 0.2
 
