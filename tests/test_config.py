@@ -171,10 +171,11 @@ def test_the_default_recipe_walks_and_the_thesis_is_one_word_away():
 def test_the_command_recipe_is_the_gait_recipe_over_commanded_speeds():
     """experiment=command: experiment=gait trained over commanded speeds from 0 (standing still) to 1.2 m/s,
     its gait stage started at a march's 2 m and its step and flight costs raised from there up to caps,
-    its best agent one that also stops where a speed schedule ends at 0 m/s."""
+    its best agent one that also stops where a speed schedule ends at 0 m/s, a changed command ramped."""
     command, gait = to_object(compose_config("experiment=command")), to_object(compose_config("experiment=gait"))
     assert command.env.speed_command and not gait.env.speed_command
     assert command.env.speed_range_m_s[0] == 0.0 < command.env.speed_stop_share and command.env.gait_follows_speed
+    assert command.env.speed_ramp_m_s2 > 0 == gait.env.speed_ramp_m_s2
     assert command.train.gait_from_distance_m == 2.0 and gait.train.gait_from_distance_m is None
     for key, cap in command.train.adapt_weights.items():
         assert cap > command.train.gait_weights[key] > 0, key

@@ -85,8 +85,9 @@ def test_a_buffer_gathered_under_other_command_draws_is_still_the_tasks():
     """A fine-tune (train.init_from) keeps its source's replay buffer where only the drawn speed
     commands differ (each transition carries its own v*), not where a transition's reward differs."""
     commanded = EnvSpec.from_config(to_object(compose_config("experiment=command")))
-    draws = commanded.with_values(env={"speed_stop_share": 0.3, "speed_changes": 2, "speed_range_m_s": [0.0, 1.4]})
-    assert len(commanded.changes_to(draws)) == 3 and commanded.transition_changes_to(draws) == []
+    draws = commanded.with_values(env={"speed_stop_share": 0.3, "speed_changes": 2, "speed_range_m_s": [0.0, 1.4],
+                                       "speed_ramp_m_s2": 1.5})
+    assert len(commanded.changes_to(draws)) == 4 and commanded.transition_changes_to(draws) == []
     narrower = draws.with_values(env={"speed_sigma_m_s": 0.25})
     assert commanded.transition_changes_to(narrower) == ["env.speed_sigma_m_s 0.5 -> 0.25"]
 
@@ -126,6 +127,9 @@ def test_evaluations_hold_one_commanded_speed_in_pamrun_eval_and_in_training():
                                    "train.eval_episodes=1", "eval.episode_s=0.5", "eval.walk_duration_s=0.5"))
     held = eval_env_options(cfg.eval)
     assert held["speed_range_m_s"] == [] and held["target_speed_m_s"] == 0.8 and held["episode_s"] == 0.5
+    assert "speed_ramp_m_s2" not in held  # the agent's own ramp ...
+    ramped = to_object(compose_config("eval.speed_ramp_m_s2=3"))
+    assert eval_env_options(ramped.eval)["speed_ramp_m_s2"] == 3.0  # ... unless eval.speed_ramp_m_s2 sets one
     evaluator = TrainingEvaluator(cfg)
     env = evaluator.env.env_cfg
     assert (env.speed_range_m_s, env.speed_changes, env.speed_stop_share) == ([], 0, 0.0)

@@ -49,11 +49,45 @@ def test_the_env_draws_and_shows_the_commanded_speed():
     plain.close()
 
 
+def test_a_ramped_command_moves_v_star_at_its_rate_and_the_clock_with_it():
+    """With env.speed_ramp_m_s2 a stop from 1.2 m/s is not taken in one control step: the v* the
+    policy is told and kspeed pays moves 2 m/s^2 x 25 ms = 0.05 m/s a step, the clock's period
+    follows it (and stops only at 0), and info's target_speed_m_s is the command from the step it
+    falls due. At 0 (the default) v* takes the command at once."""
+    task = {"speed_command": True, "gait_period_s": 1.1, "step_length_m": 0.55, "gait_follows_speed": True,
+            "speed_schedule": [[0, 1.2], [0.25, 0.0]]}
+    seen = {}
+    for ramp in (0.0, 2.0):
+        env = PamWalkerEnv(env={**task, "speed_ramp_m_s2": ramp}, features=["kspeed"])
+        obs, info = env.reset(seed=0)
+        told, commanded, periods = [float(obs[43])], [float(info["target_speed_m_s"])], []
+        for _ in range(40):
+            obs, _, terminated, _, info = env.step(np.zeros(10))
+            assert not terminated
+            told.append(float(obs[43]))
+            commanded.append(float(info["target_speed_m_s"]))
+            periods.append(env.gait_period_s)
+            vx = env.data.qvel[0]
+            assert info["reward_unweighted"]["kspeed"] == pytest.approx(
+                math.exp(-(((vx - env.episode.target_speed_m_s) / 0.5) ** 2)))
+        assert commanded == [1.2] * 10 + [0.0] * 31  # the command falls due at step 10, whatever the ramp
+        seen[ramp] = told, periods
+        env.close()
+    at_once, ramped = seen[0.0][0], seen[2.0][0]
+    assert at_once[9:12] == [pytest.approx(1.2), 0.0, 0.0]
+    assert np.allclose(np.diff(ramped[9:34]), -0.05, atol=1e-6) and ramped[34:] == [0.0] * 7
+    periods = seen[2.0][1]  # periods[k - 1]: after step k
+    assert all(b > a for a, b in zip(periods[8:31], periods[9:32])) and math.isfinite(periods[31])
+    assert math.isinf(periods[32]) and math.isinf(seen[0.0][1][9])
+
+
 @pytest.mark.parametrize("override, key", [
     (["env.speed_range_m_s=[0.5,1.2]"], "speed_range_m_s"),  # a drawn speed the policy is not told
     (["env.speed_command=true", "env.speed_range_m_s=[1.2,0.5]"], "speed_range_m_s"),
     (["env.speed_command=true", "env.speed_range_m_s=[-0.1,0.5]"], "speed_range_m_s"),
     (["eval.speed_m_s=-1"], "speed_m_s"),
+    (["env.speed_ramp_m_s2=-1"], "speed_ramp_m_s2"),
+    (["eval.speed_ramp_m_s2=-0.5"], "speed_ramp_m_s2"),
 ])
 def test_impossible_speed_commands_fail_naming_the_key(override, key):
     with pytest.raises(ConfigError, match=key):

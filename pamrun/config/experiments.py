@@ -151,6 +151,8 @@ class EvalConfig:
     # (sets env.speed_schedule; an agent without env.speed_command is not told it, only measured
     # against it: pamrun.evaluation.tracking). [] = off (typed Any, as env.speed_schedule)
     speed_schedule: list[Any] = field(default_factory=list)
+    # How fast v* moves to a changed command [m/s^2] (sets env.speed_ramp_m_s2; 0 = at once). None = its own
+    speed_ramp_m_s2: Optional[float] = None
     # Walk test (§10.3): walk walk_duration_s without falling, never leaving |y| <= walk_lateral_m,
     # ending at least walk_distance_m forward.
     walk_duration_s: float = 10.0
@@ -188,6 +190,8 @@ class EvalConfig:
         _non_negative(self, "reset_noise_rad", "reset_velocity_noise", "walk_distance_m")
         _require(self.speed_m_s is None or (math.isfinite(self.speed_m_s) and self.speed_m_s >= 0), "speed_m_s",
                  f"must be a speed >= 0 in m/s, got {self.speed_m_s}")
+        _require(self.speed_ramp_m_s2 is None or (math.isfinite(self.speed_ramp_m_s2) and self.speed_ramp_m_s2 >= 0),
+                 "speed_ramp_m_s2", f"must be >= 0 in m/s^2 (0 = at once), got {self.speed_ramp_m_s2}")
         _positive(self, "episode_s", "walk_duration_s", "walk_lateral_m")
         self.speed_schedule = check_speed_schedule(self.speed_schedule, self.episode_s, "speed_schedule",
                                                    "eval.episode_s")

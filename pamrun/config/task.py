@@ -95,6 +95,10 @@ class EnvConfig:
     speed_changes: int = 0
     # chance that a v* drawn from speed_range_m_s (at reset or a change) is 0 instead: learning to stop
     speed_stop_share: float = 0.0
+    # How fast v* moves to a changed command [m/s^2]: within an episode, the v* the policy is told, the
+    # reward pays and the clock follows moves toward each new command by at most this much a second (a
+    # stop from 1.2 m/s at 2 takes 0.6 s: one step); an episode starts at its command. 0 = at once
+    speed_ramp_m_s2: float = 0.0
     # The command applied is alpha a + (1 - alpha) a_prev: a first-order low-pass of the policy's
     # action a (a_prev the last applied command, 0 at reset), for smaller pressure steps; 1 = off
     action_filter_alpha: float = 1.0
@@ -198,6 +202,8 @@ class EnvConfig:
                  "sets v* itself: leave env.speed_range_m_s empty")
         _require(self.speed_changes >= 0, "speed_changes", f"must be >= 0, got {self.speed_changes}")
         _require(0 <= self.speed_stop_share <= 1, "speed_stop_share", f"must lie in [0, 1], got {self.speed_stop_share}")
+        _require(math.isfinite(self.speed_ramp_m_s2) and self.speed_ramp_m_s2 >= 0, "speed_ramp_m_s2",
+                 f"must be >= 0 (0 = at once), got {self.speed_ramp_m_s2}")
         for name in ("speed_changes", "speed_stop_share"):
             _require(not getattr(self, name) or self.speed_range_m_s, name,
                      "draws from env.speed_range_m_s: set it, e.g. [0, 1.2]")

@@ -43,7 +43,9 @@ in a step whose physics blew up.
 v* is ``env.target_speed_m_s``, or drawn per episode from ``env.speed_range_m_s`` (and again
 ``env.speed_changes`` times within it, 0 with chance ``env.speed_stop_share``), or piecewise
 constant after ``env.speed_schedule``; a change applies from the control step nearest its time
-on (its observation, reward and info). With ``env.gait_period_s`` T > 0 a clock phi = phi0 + t / T (mod 1) runs, phi0
+on (its observation, reward and info). With ``env.speed_ramp_m_s2`` a changed command is not
+taken at once: v* moves toward it by at most that many m/s a second (the stop from a walk then
+takes a step, not a control step); info's ``target_speed_m_s`` is the command. With ``env.gait_period_s`` T > 0 a clock phi = phi0 + t / T (mod 1) runs, phi0
 drawn per episode; the right foot swings in the first ``env.swing_share`` of each period, the
 left half a period later (:mod:`pamrun.task.clock`). With ``env.gait_follows_speed`` T follows
 v* (the phase runs on from where it was when v* changes) and at v* = 0 the clock stops, both
@@ -67,7 +69,8 @@ or when the physics state is not finite (``info["physics_error"]``).
 ``x``, ``y``, ``z``, ``distance`` [m], ``torso_rpy_rad`` (3,) (the torso's roll, pitch and yaw), ``reward_terms`` (weighted) and ``reward_unweighted``
 (the features), each a dict by weight key, ``pressure_kpa``, ``contraction_pct`` (10, 2),
 ``foot_force_n`` (2,) [N], ``sole_xyz_m`` (2, 4, 3) [m], ``joint_torque_nm`` (10,) [N m],
-``fell``, ``physics_error``, ``target_speed_m_s`` (v* now), and ``air_nl`` [normal litres] when the
+``fell``, ``physics_error``, ``target_speed_m_s`` (the speed commanded now: v*, or where
+``env.speed_ramp_m_s2`` ramps v*, the command it moves toward), and ``air_nl`` [normal litres] when the
 reward computes ``kair``. With the keyword argument ``lean_info=True`` only ``distance``,
 ``physics_error``, ``reward_terms``, ``reward_unweighted`` (and ``air_nl``): what a training run
 reads (``pamrun.training.recipe.make_env``'s info readers), without the cost of the rest.
@@ -122,7 +125,7 @@ _State = tuple[list[float], list[float], tuple[float, ...]]
 class Episode:
     """What changes within an episode; ``reset`` replaces it."""
 
-    target_speed_m_s: float  # v*
+    target_speed_m_s: float  # v*: the speed the task asks now (observed, paid, clocked)
     gait_period_s: float  # T at v*
     step_length_m: float  # L* at v*
     prev_action: np.ndarray  # the command applied in the last step (0 at reset)
@@ -132,8 +135,13 @@ class Episode:
     soles: np.ndarray | None = None  # the feet's contact points (2, k, 3) after the last step
     contact: list[bool] = field(default_factory=lambda: [False, False])  # the feet on the ground then
     gas: np.ndarray | None = None  # the muscles' gas P V [kPa l] then (when the env meters air)
-    changes: list[tuple[int, float]] = field(default_factory=list)  # v*'s changes to come: (control step, v*)
+    changes: list[tuple[int, float]] = field(default_factory=list)  # the commands to come: (control step, speed)
     clock_step0: int = 0  # the control step the clock runs at its period from (phase0 its phase then)
+    command_m_s: float = math.nan  # the speed commanded now, which v* moves toward (v* at reset)
+
+    def __post_init__(self) -> None:
+        if math.isnan(self.command_m_s):
+            self.command_m_s = self.target_speed_m_s
 
     def phase(self, env: EnvConfig) -> float:
         """The gait clock's phase phi in [0, 1) now."""
@@ -144,10 +152,20 @@ class Episode:
         """Whether the clock stands still, both feet asked down (v* = 0 with ``env.gait_follows_speed``)."""
         return math.isinf(self.gait_period_s)
 
+    def speed_changes_now(self) -> bool:
+        """Whether v* changes in this step: a command falls due, or v* is still on its way to one."""
+        return bool(self.changes and self.changes[0][0] <= self.steps) or self.target_speed_m_s != self.command_m_s
+
     def change_speed(self, env: EnvConfig) -> None:
-        """Apply the changes of v* due by this step; the clock goes on from its phase now."""
+        """Take the commands due by this step and move v* toward the last (at most
+        ``env.speed_ramp_m_s2`` x Ts, or at once at 0); the clock goes on from its phase now."""
         while self.changes and self.changes[0][0] <= self.steps:
-            _, self.target_speed_m_s = self.changes.pop(0)
+            _, self.command_m_s = self.changes.pop(0)
+        gap, most = self.command_m_s - self.target_speed_m_s, env.speed_ramp_m_s2 * env.control_dt_s
+        if most and abs(gap) > most:
+            self.target_speed_m_s += math.copysign(most, gap)
+        else:
+            self.target_speed_m_s = self.command_m_s
         if env.gait_period_s > 0:
             self.phase0, self.clock_step0 = self.phase(env), self.steps
         self.gait_period_s, self.step_length_m = gait_at_speed(env, self.target_speed_m_s)
@@ -326,7 +344,7 @@ class PamWalkerEnv(gym.Env):
         ep = self.episode
         self._advance(action, voltage)
         ep.steps += 1
-        if ep.changes and ep.changes[0][0] <= ep.steps:  # v* changes from this step's observation and reward on
+        if ep.speed_changes_now():  # v* changes from this step's observation and reward on
             ep.change_speed(self.env_cfg)
         previous, ep.prev_action = ep.prev_action, action
         # MuJoCo resets the state itself when it meets NaN/Inf, so its warnings count too.
@@ -477,5 +495,5 @@ class PamWalkerEnv(gym.Env):
             "joint_torque_nm": self._qfrc_actuator[self.qvel_idx],
             "fell": bool(fell),
             "physics_error": np.bool_(physics_error),
-            "target_speed_m_s": np.float64(self.episode.target_speed_m_s),  # v* now
+            "target_speed_m_s": np.float64(self.episode.command_m_s),  # the command now (v* ramps to it)
         }

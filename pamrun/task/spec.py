@@ -24,10 +24,10 @@ from pamrun.config import (
 )
 from pamrun.task.env import PamWalkerEnv
 
-# env keys that change only which speed commands the episodes draw: a transition carries its own v*
-# (in its observation, and in its reward's terms), so a replay buffer gathered under other values
-# is still this task's.
-COMMAND_DRAWS = ("env.speed_range_m_s", "env.speed_changes", "env.speed_stop_share")
+# env keys that change only which speed commands the episodes see and how v* moves between them: a
+# transition carries its own v* (in its observation, and in its reward's terms), so a replay buffer
+# gathered under other values is still this task's.
+COMMAND_DRAWS = ("env.speed_range_m_s", "env.speed_changes", "env.speed_stop_share", "env.speed_ramp_m_s2")
 
 
 @dataclass(frozen=True)
@@ -136,13 +136,16 @@ def eval_env_options(ecfg) -> dict:
     :class:`pamrun.config.EvalConfig`), in ``pamrun eval`` and in the selection evaluations during
     training alike: its start noise and episode length, and a commanded speed held for the whole
     episode (``eval.speed_m_s``), or a schedule of them (``eval.speed_schedule``), else the
-    agent's own v* (``env.target_speed_m_s``), never a drawn range or drawn changes: the walk
+    agent's own v* (``env.target_speed_m_s``), and how fast v* follows a change
+    (``eval.speed_ramp_m_s2``, else the agent's own), never a drawn range or drawn changes: the walk
     test is defined at one speed, so a run that trains over drawn speeds is selected at it."""
     options = {"reset_noise_rad": ecfg.reset_noise_rad, "reset_velocity_noise": ecfg.reset_velocity_noise,
                "episode_s": ecfg.episode_s}
     speed = {} if ecfg.speed_m_s is None else {"target_speed_m_s": ecfg.speed_m_s, "speed_schedule": []}
     if ecfg.speed_schedule:
         speed = {"speed_schedule": [list(e) for e in ecfg.speed_schedule]}
+    if ecfg.speed_ramp_m_s2 is not None:
+        speed["speed_ramp_m_s2"] = ecfg.speed_ramp_m_s2
     return {**options, "speed_range_m_s": [], "speed_changes": 0, "speed_stop_share": 0.0, **speed}
 
 
