@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from pamrun.config import ConfigError, to_object
-from pamrun.task.clock import STANCE_WANTS, SWING_WANTS, foot_miss, foot_wants, swing_weights
+from pamrun.task.clock import STANCE_WANTS, SWING_WANTS, both_down_weight, foot_miss, foot_wants, swing_weights
 from pamrun.task.env import PamWalkerEnv
 from pamrun.task.symmetry import action_map, mirror_state, observation_map
 from tests.conftest import compose_config
@@ -333,3 +333,57 @@ def test_the_clock_and_the_step_length_follow_the_commanded_speed():
     assert PamWalkerEnv(env={**CLOCK, "target_speed_m_s": 0.5}).gait_period_s == 0.8  # without it: the fixed clock
     env.close()
     slow.close()
+
+
+def test_both_down_weight_marks_the_clocks_double_support():
+    """(1 - s_right)(1 - s_left) is ~1 for the 1 - 2 sigma of the period where neither foot swings
+    and ~0 while one does."""
+    phases = np.arange(4000) / 4000
+    for share in (0.4, 0.3):
+        weights = np.array([both_down_weight(p, share) for p in phases])
+        swings = np.array([swing_weights(p, share) for p in phases])
+        assert np.mean(weights > 0.5) == pytest.approx(1 - 2 * share, abs=0.003)
+        assert weights[(swings > 0.99).any(axis=1)].max() < 0.01
+        assert weights[(swings < 0.01).all(axis=1)].min() > 0.98
+
+
+def test_kdouble_charges_a_foot_up_while_the_clock_stands_both():
+    """On both feet, kdouble's feature is 0 at every phase. Lifted clear of the floor, it is minus
+    the clock's both-feet-down weight: ~-1 in its double support, ~0 while it swings a foot; -1
+    with the clock stopped (v* = 0); 0 without a clock. In info under kdouble, weighted."""
+    env = PamWalkerEnv(env=CLOCK, reward={"kdouble": 3.0})
+    env.reset(seed=0)
+    for _ in range(64):  # two periods on both feet
+        _, _, fell, _, info = env.step(np.zeros(10))
+        assert not fell and min(info["foot_force_n"]) > 0.05 * env.weight_n
+        assert info["reward_unweighted"]["kdouble"] == 0.0
+    seen = {"double": [], "swing": []}
+    for _ in range(32):  # one period, held in the air
+        env.data.qpos[2] += 0.3
+        env.data.qvel[:] = 0.0
+        mujoco.mj_forward(env.model, env.data)
+        _, _, _, _, info = env.step(np.zeros(10))
+        env.data.qpos[2] -= 0.3
+        assert max(info["foot_force_n"]) < 0.05 * env.weight_n
+        weight = both_down_weight(env.gait_phase(), 0.4)
+        feature = info["reward_unweighted"]["kdouble"]
+        assert feature == pytest.approx(-weight, abs=1e-9)
+        assert info["reward_terms"]["kdouble"] == pytest.approx(3.0 * feature)
+        seen.setdefault("double" if weight > 0.98 else "swing" if weight < 0.01 else "edge", []).append(feature)
+    assert seen["double"] and seen["swing"]
+    env.close()
+    stopped = PamWalkerEnv(env={**CLOCK, "gait_follows_speed": True, "target_speed_m_s": 0.0}, reward={"kdouble": 1.0})
+    stopped.reset(seed=0)
+    assert stopped.episode.clock_stopped
+    stopped.data.qpos[2] += 0.3
+    mujoco.mj_forward(stopped.model, stopped.data)
+    *_, info = stopped.step(np.zeros(10))
+    assert info["reward_unweighted"]["kdouble"] == -1.0
+    stopped.close()
+    plain = PamWalkerEnv(reward={"kdouble": 1.0})
+    plain.reset(seed=0)
+    plain.data.qpos[2] += 0.3
+    mujoco.mj_forward(plain.model, plain.data)
+    *_, info = plain.step(np.zeros(10))
+    assert info["reward_unweighted"]["kdouble"] == 0.0
+    plain.close()

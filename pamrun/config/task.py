@@ -25,7 +25,7 @@ class RewardConfig:
           + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip - kair air - kstep steps
           + kgait (1 - clock miss) - kflight [no foot down] - kflat tilt - kland landing
           - kupright (roll^2 + pitch^2) + ktrack exp(-((Vx - v*) / sigma_track)^2)
-          (the last thirteen: 0 in the thesis)
+          - kdouble w_both [a foot up] (the last fourteen: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -57,6 +57,9 @@ class RewardConfig:
     # weight of kspeed's pay with a narrower sigma, exp(-((Vx - v*) / env.track_sigma_m_s)^2): for a later
     # stage (train.gait_weights), once the wide one has started a walk (a narrow one alone pays a march nothing)
     ktrack: float = 0.0
+    # weight of a foot off the ground while the gait clock stands both feet down: w_both [a foot up], w_both
+    # = (1 - s_right)(1 - s_left) the clock's both-feet-down weight (1 while it stands still), 0 without a clock
+    kdouble: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):

@@ -28,6 +28,13 @@ def swing_weights(phase: float, swing_share: float) -> tuple[float, float]:
                  for foot in (0, 1))
 
 
+def both_down_weight(phase: float, swing_share: float) -> float:
+    """How much the clock stands both feet at this phase, (1 - s_right)(1 - s_left): ~1 in its
+    double-support windows (a share 1 - 2 ``swing_share`` of the period), ~0 while a foot swings."""
+    right, left = swing_weights(phase, swing_share)
+    return (1.0 - right) * (1.0 - left)
+
+
 SWING_WANTS = ("swing_load", "swing_lift", "swing_knee")  # a swinging foot's wants, as misses
 STANCE_WANTS = ("stance_speed", "stance_load", "stance_knee")  # ... and a standing one's
 

@@ -171,6 +171,20 @@ def flight(t: Transition) -> float:
     return -float(not any(t.contact))
 
 
+@term("kdouble")
+def double_support(t: Transition) -> float:
+    """Minus the clock's both-feet-down weight (pamrun.task.clock.both_down_weight; 1 while it stands
+    still) when the step ends with a foot off the ground: its double support kept (0 without a clock).
+    kgait charges each foot's largest miss, so a trailing foot whose knee already bends past
+    env.stance_knee_deg pays nothing more for lifting early."""
+    env = t.env
+    if not env.gait_clock or all(t.contact):
+        return 0.0
+    if t.episode.clock_stopped:
+        return -1.0
+    return -clock.both_down_weight(t.episode.phase(env.env_cfg), env.env_cfg.swing_share)
+
+
 @term("kflat")
 def sole_edge(t: Transition) -> float:
     """Minus the summed side-to-side tilt [rad] of the feet on the ground at the step's end: a foot
