@@ -126,6 +126,7 @@ class Episode:
     """What changes within an episode; ``reset`` replaces it."""
 
     target_speed_m_s: float  # v*: the speed the task asks now (observed, paid, clocked)
+    command_m_s: float  # the speed commanded now, which v* moves toward (v* at reset)
     gait_period_s: float  # T at v*
     step_length_m: float  # L* at v*
     prev_action: np.ndarray  # the command applied in the last step (0 at reset)
@@ -137,11 +138,6 @@ class Episode:
     gas: np.ndarray | None = None  # the muscles' gas P V [kPa l] then (when the env meters air)
     changes: list[tuple[int, float]] = field(default_factory=list)  # the commands to come: (control step, speed)
     clock_step0: int = 0  # the control step the clock runs at its period from (phase0 its phase then)
-    command_m_s: float = math.nan  # the speed commanded now, which v* moves toward (v* at reset)
-
-    def __post_init__(self) -> None:
-        if math.isnan(self.command_m_s):
-            self.command_m_s = self.target_speed_m_s
 
     def phase(self, env: EnvConfig) -> float:
         """The gait clock's phase phi in [0, 1) now."""
@@ -279,7 +275,7 @@ class PamWalkerEnv(gym.Env):
         return range(first, first + n_push), np.asarray(cfg.push_impulse_ns, float) / (n_push * cfg.control_dt_s)
 
     def _new_episode(self, speed_m_s: float, phase0: float = 0.0, changes: list | None = None) -> Episode:
-        return Episode(speed_m_s, *gait_at_speed(self.env_cfg, speed_m_s), np.zeros(self.n_actions), phase0,
+        return Episode(speed_m_s, speed_m_s, *gait_at_speed(self.env_cfg, speed_m_s), np.zeros(self.n_actions), phase0,
                        changes=changes or [])
 
     def _speed_plan(self, speed_m_s: float) -> tuple[float, list[tuple[int, float]]]:
