@@ -12,7 +12,15 @@ import numpy as np
 import pytest
 
 from pamrun.config import ConfigError, to_object
-from pamrun.task.clock import STANCE_WANTS, SWING_WANTS, both_down_weight, foot_miss, foot_wants, swing_weights
+from pamrun.task.clock import (
+    STANCE_WANTS,
+    SWING_WANTS,
+    both_down_weight,
+    foot_miss,
+    foot_path_m,
+    foot_wants,
+    swing_weights,
+)
 from pamrun.task.env import PamWalkerEnv
 from pamrun.task.symmetry import action_map, mirror_state, observation_map
 from tests.conftest import compose_config
@@ -386,4 +394,54 @@ def test_kdouble_charges_a_foot_up_while_the_clock_stands_both():
     mujoco.mj_forward(plain.model, plain.data)
     *_, info = plain.step(np.zeros(10))
     assert info["reward_unweighted"]["kdouble"] == 0.0
+    plain.close()
+
+
+def test_foot_path_moves_each_foot_back_in_stance_and_forward_in_swing():
+    """The clock's foot path: a foot moves forward of the torso while swing_weights swings it and back
+    while it stands, from +E/2 at touchdown to -E/2 at lift-off (E = 2 (1 - sigma) L*), without a jump,
+    the feet L* apart at each touchdown;
+    the left foot's path is the right's half a period later; at L* = 0 both are 0."""
+    phases = np.arange(4000) / 4000
+    for share, step in ((0.4, 0.625), (0.3, 0.4)):
+        path = np.array([foot_path_m(p, share, step) for p in phases])
+        swings = np.array([swing_weights(p, share) for p in phases])
+        reach = (1 - share) * step
+        assert path.max() == pytest.approx(reach, rel=1e-3) and path.min() == pytest.approx(-reach, rel=1e-3)
+        assert np.abs(np.diff(path, axis=0)).max() < 4 * reach / (4000 * min(share, 1 - share))  # no jump
+        moved = np.diff(path, axis=0, append=path[:1])
+        for foot in (0, 1):
+            assert (moved[swings[:, foot] > 0.99, foot] > 0).all()  # forward in swing
+            assert (moved[swings[:, foot] < 0.01, foot] < 0).all()  # back in stance
+            landing = np.flatnonzero((swings[:-1, foot] > 0.5) & (swings[1:, foot] <= 0.5))
+            assert path[landing, foot] == pytest.approx([reach], abs=0.01)  # lands ahead, the other behind:
+            assert path[landing, foot] - path[landing, 1 - foot] == pytest.approx([step], abs=0.01)  # a step of L*
+        np.testing.assert_allclose(path[:, 1], np.roll(path[:, 0], -2000), atol=1e-9)
+        assert foot_path_m(0.3, share, 0.0) == (0.0, 0.0)
+
+
+def test_kplace_charges_the_feet_miss_of_the_clocks_path():
+    """Standing still on both feet under the torso while the clock runs, kplace's feature is ~0 where
+    the path has both feet under the torso (one at mid-swing, the other at mid-stance) and -1 where it
+    wants them a step apart (each miss capped at 1); with the clock stopped it stays near 0, and is 0
+    without a clock. In info under kplace, weighted."""
+    env = PamWalkerEnv(env={**CLOCK, "step_length_m": 0.625}, reward={"kplace": 2.0})
+    env.reset(seed=0)
+    features = []
+    for _ in range(64):
+        _, _, fell, _, info = env.step(np.zeros(10))
+        assert not fell
+        features.append(info["reward_unweighted"]["kplace"])
+        assert info["reward_terms"]["kplace"] == pytest.approx(2.0 * features[-1])
+    assert max(features) > -0.05 and min(features) == pytest.approx(-1.0, abs=0.02)
+    env.close()
+    stopped = PamWalkerEnv(env={**CLOCK, "gait_follows_speed": True, "target_speed_m_s": 0.0}, reward={"kplace": 1.0})
+    stopped.reset(seed=0)
+    still = [stopped.step(np.zeros(10))[-1]["reward_unweighted"]["kplace"] for _ in range(32)]
+    assert -0.15 < min(still) and max(still) - min(still) < 0.05  # the soles' centres a few cm ahead of the torso
+    stopped.close()
+    plain = PamWalkerEnv(reward={"kplace": 1.0})
+    plain.reset(seed=0)
+    *_, info = plain.step(np.zeros(10))
+    assert info["reward_unweighted"]["kplace"] == 0.0
     plain.close()

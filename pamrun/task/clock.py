@@ -35,6 +35,24 @@ def both_down_weight(phase: float, swing_share: float) -> float:
     return (1.0 - right) * (1.0 - left)
 
 
+def foot_path_m(phase: float, swing_share: float, step_length_m: float) -> tuple[float, float]:
+    """Where the clock wants the right and the left foot [m], forward of the torso, at this phase:
+    each foot's sole moves back at a constant rate through its stance, from +E/2 at touchdown to
+    -E/2 at lift-off, and forward through its swing, -E/2 cos(pi u) at the swing's share u; E =
+    2 (1 - sigma) L*, the distance the torso covers in a stance at v* = 2 L* / T. At L* = 0
+    (standing still) both feet are under the torso. Each foot's swing is where
+    :func:`swing_weights` swings it, centred a quarter period after its clock's zero."""
+    reach = (1.0 - swing_share) * step_length_m  # E / 2
+    path = []
+    for foot in (0, 1):
+        psi = (phase + 0.5 * foot - 0.25 + 0.5 * swing_share) % 1.0  # 0 at lift-off
+        if psi < swing_share:
+            path.append(-reach * math.cos(math.pi * psi / swing_share))
+        else:
+            path.append(reach * (1.0 - 2.0 * (psi - swing_share) / (1.0 - swing_share)))
+    return path[0], path[1]
+
+
 SWING_WANTS = ("swing_load", "swing_lift", "swing_knee")  # a swinging foot's wants, as misses
 STANCE_WANTS = ("stance_speed", "stance_load", "stance_knee")  # ... and a standing one's
 
