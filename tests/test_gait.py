@@ -92,6 +92,16 @@ def test_spec_from_configs():
 # --------------------------------------------------------------------------- steps
 
 
+def test_touchdown_reach_is_the_landing_foots_distance_ahead_of_the_torso():
+    # the constructed walk covers 0.4 m per step in 20 rows at 0.8 m/s: at each touchdown the torso
+    # is where the landing foot lands (a foot under the hip); 0.25 m further back, 0.25 m behind it
+    steps = walk(200, 40, 20, 24, 0.4, 0.4)
+    assert episode_metrics(steps, spec())["touchdown_reach_m"] == pytest.approx(0.0, abs=1e-9)
+    steps["x_m"] = steps["x_m"] - 0.25
+    assert episode_metrics(steps, spec())["touchdown_reach_m"] == pytest.approx(0.25, abs=1e-9)
+    assert math.isnan(episode_metrics(still(100), spec())["touchdown_reach_m"])
+
+
 def test_mirrored_gait_is_symmetric_with_the_constructed_frequency_and_length():
     # stride 40 rows = 1 s, left half a stride later: a step every 0.5 s, 0.4 m long
     m = episode_metrics(walk(200, 40, 20, 24, 0.4, 0.4), spec())

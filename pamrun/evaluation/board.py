@@ -27,6 +27,7 @@ GAIT_SCALARS = {
     "steps_per_s": "step_frequency_hz_mean",
     "step_length_m": "step_length_m_mean",
     "stride_length_m": "stride_length_m_mean",
+    "touchdown_reach_m": "touchdown_reach_m_mean",
     "duty_factor": "duty_factor_mean",
     "step_time_symmetry": "step_time_symmetry_mean",
     "step_length_symmetry": "step_length_symmetry_mean",

@@ -22,6 +22,9 @@ Definitions (the manual of :func:`episode_metrics`):
   is a **step** of that foot.
 * **step length**: forward (x) distance from the other foot's sole centre to the sole centre
   of the foot touching down, at the touchdown (negative for a step backwards).
+* **touchdown reach**: forward (x) distance from the torso (``x_m``) to the sole centre of the foot
+  touching down, at the touchdown, averaged over the steps (half the step length when the torso
+  is midway between the feet as a foot lands; near 0, the foot lands under the hip).
 * **step time**: time from the other foot's previous touchdown to this one (undefined for a
   step before the other foot has touched down).
 * **step frequency**: steps per second over the span of the detected steps,
@@ -112,6 +115,7 @@ GAIT_METRICS = (
     "step_count",
     "step_frequency_hz",
     "step_length_m",
+    "touchdown_reach_m",
     "stride_length_m",
     "step_time_symmetry",
     "step_length_symmetry",
@@ -402,6 +406,8 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
         out["step_length_m"] = _mean([length for _, _, length, _ in table])
     per_foot = {foot: [s for s in table if s[1] == foot] for foot in (RIGHT, LEFT)}
     feet_x = sole_points(steps)[..., 0].mean(axis=2)
+    if table:
+        out["touchdown_reach_m"] = _mean([feet_x[row, foot] - x[row] for row, foot, _, _ in table])
     out["stride_length_m"] = _mean([d for foot, rows in enumerate(touchdowns(events))
                                     for d in np.diff(feet_x[rows, foot])])
     out["step_time_symmetry"] = symmetry_index(*(_mean([s[3] for s in per_foot[f]]) for f in (RIGHT, LEFT)))

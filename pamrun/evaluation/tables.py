@@ -29,9 +29,9 @@ def leaderboard_table(ranked: list[dict], ecfg, limit: int = 20):
 def gait_table(ranked: list[dict], limit: int = 20):
     """The gait metrics' means (and spreads) per agent (pamrun.evaluation.metrics defines them)."""
     table = Table(title="Gait (means ± std over episodes; 'hops': touchdowns with both feet together; 'at a stop': "
-                        "the joint most often within 2° of a stop, knees only in swing; 'both down / flight': shares "
+                        "the joint most often within 2° of a stop, knees only in swing; reach: a landing foot ahead of the torso; 'both down / flight': shares "
                         "of the time after the first second; knee: flexion at mid-stance / its peak in swing; sole tilt: a foot on the ground, side to side; lean: the torso's pitch, + forward)")
-    for col in ("#", "agent", "speed (m/s)", "cadence (steps/s)", "stride (m)", "symmetry time/length", "hops", "duty",
+    for col in ("#", "agent", "speed (m/s)", "cadence (steps/s)", "stride (m)", "reach (m)", "symmetry time/length", "hops", "duty",
                 "both down / flight", "knee stance / swing (°)", "at a stop", "clearance (m)", "slip (m/s)", "sole tilt (°)", "lean (°)", "CoT",
                 "air (NL/m)", "walk targets"):
         table.add_column(col, justify="left" if col == "agent" else "right", no_wrap=col != "agent", overflow="fold")
@@ -41,7 +41,7 @@ def gait_table(ranked: list[dict], limit: int = 20):
 
     for row in ranked[:limit]:
         table.add_row(str(row["rank"]), row["agent"], pm(row, "speed"), pm(row, "step_frequency_hz"),
-                      pm(row, "stride_length_m"),
+                      pm(row, "stride_length_m"), pm(row, "touchdown_reach_m"),
                       f"{row['step_time_symmetry_mean']:.2f} / {row['step_length_symmetry_mean']:.2f}",
                       f"{row['hop_share_mean']:.0%}", f"{row['duty_factor_mean']:.2f}",
                       f"{row['double_support_share_mean']:.0%} / {row['flight_share_mean']:.0%}",
