@@ -421,9 +421,9 @@ def test_foot_path_moves_each_foot_back_in_stance_and_forward_in_swing():
 
 
 def test_kplace_charges_the_feet_miss_of_the_clocks_path():
-    """Standing still on both feet under the torso while the clock runs, kplace's feature is ~0 where
-    the path has both feet under the torso (one at mid-swing, the other at mid-stance) and -1 where it
-    wants them a step apart (each miss capped at 1); with the clock stopped it stays near 0, and is 0
+    """Standing still on both feet under the torso while the clock runs, kplace's feature is ~1 where
+    the path has both feet under the torso (one at mid-swing, the other at mid-stance) and 0 where it
+    wants them a step apart (each miss capped at 1); with the clock stopped it stays near 1, and is 0
     without a clock. In info under kplace, weighted."""
     env = PamWalkerEnv(env={**CLOCK, "step_length_m": 0.625}, reward={"kplace": 2.0})
     env.reset(seed=0)
@@ -433,12 +433,12 @@ def test_kplace_charges_the_feet_miss_of_the_clocks_path():
         assert not fell
         features.append(info["reward_unweighted"]["kplace"])
         assert info["reward_terms"]["kplace"] == pytest.approx(2.0 * features[-1])
-    assert max(features) > -0.05 and min(features) == pytest.approx(-1.0, abs=0.02)
+    assert max(features) > 0.95 and min(features) == pytest.approx(0.0, abs=0.02)
     env.close()
     stopped = PamWalkerEnv(env={**CLOCK, "gait_follows_speed": True, "target_speed_m_s": 0.0}, reward={"kplace": 1.0})
     stopped.reset(seed=0)
     still = [stopped.step(np.zeros(10))[-1]["reward_unweighted"]["kplace"] for _ in range(32)]
-    assert -0.15 < min(still) and max(still) - min(still) < 0.05  # the soles' centres a few cm ahead of the torso
+    assert 0.85 < min(still) < 1.0 and max(still) - min(still) < 0.05  # the soles' centres a few cm ahead of the torso
     stopped.close()
     plain = PamWalkerEnv(reward={"kplace": 1.0})
     plain.reset(seed=0)

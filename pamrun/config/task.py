@@ -25,7 +25,7 @@ class RewardConfig:
           + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip - kair air - kstep steps
           + kgait (1 - clock miss) - kflight [no foot down] - kflat tilt - kland landing
           - kupright (roll^2 + pitch^2) + ktrack exp(-((Vx - v*) / sigma_track)^2)
-          - kdouble w_both [a foot up] - kplace path miss (the last fifteen: 0 in the thesis)
+          - kdouble w_both [a foot up] + kplace (1 - path miss) (the last fifteen: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -60,7 +60,7 @@ class RewardConfig:
     # weight of a foot off the ground while the gait clock stands both feet down: w_both [a foot up], w_both
     # = (1 - s_right)(1 - s_left) the clock's both-feet-down weight (1 while it stands still), 0 without a clock
     kdouble: float = 0.0
-    # weight of the feet's miss of the gait clock's foot path: (1/2) sum_feet min(((x_foot - x_torso - x*) / (L0 / 2))^2, 1),
+    # weight of the feet following the gait clock's foot path, 1 - (1/2) sum_feet min(((x_foot - x_torso - x*) / (L0 / 2))^2, 1),
     # x* from +E/2 at touchdown back to -E/2 at lift-off (E = 2 (1 - swing_share) L*), L0 = env.step_length_m; 0 without a clock
     kplace: float = 0.0
 

@@ -187,10 +187,11 @@ def double_support(t: Transition) -> float:
 
 @term("kplace")
 def foot_placement(t: Transition) -> float:
-    """Minus the feet's mean squared miss of the clock's foot path (pamrun.task.clock.foot_path_m: each
+    """1 - the feet's mean squared miss of the clock's foot path (pamrun.task.clock.foot_path_m: each
     sole's forward distance from the torso, from +E/2 at touchdown back to -E/2 at lift-off and forward
     again in swing), in units of half ``env.step_length_m``, each foot's capped at 1 (0 without a clock):
-    a swing that lands its foot under the hip, not ahead of it, takes short steps at the clock's cadence."""
+    a swing that lands its foot under the hip, not ahead of it, takes short steps at the clock's cadence.
+    A pay, as kgait's: charged as a cost at 16, the miss made falling backwards cheaper than walking."""
     env = t.env
     if not env.gait_clock:
         return 0.0
@@ -199,7 +200,7 @@ def foot_placement(t: Transition) -> float:
                                                         t.episode.step_length_m)
     scale = 0.5 * env.env_cfg.step_length_m
     ahead = (t.soles[:, :, 0].mean(axis=1) - t.torso[0]).tolist()
-    return -0.5 * sum(min(((a - p) / scale) ** 2, 1.0) for a, p in zip(ahead, path))
+    return 1.0 - 0.5 * sum(min(((a - p) / scale) ** 2, 1.0) for a, p in zip(ahead, path))
 
 
 @term("kflat")
