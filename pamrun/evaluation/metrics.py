@@ -402,11 +402,10 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
         t = np.asarray(steps["t_s"], float)
         span = t[table[-1][0]] - t[table[0][0]]
         out["step_frequency_hz"] = (len(table) - 1) / span if span > 0 else nan
-    if table:
-        out["step_length_m"] = _mean([length for _, _, length, _ in table])
     per_foot = {foot: [s for s in table if s[1] == foot] for foot in (RIGHT, LEFT)}
     feet_x = sole_points(steps)[..., 0].mean(axis=2)
     if table:
+        out["step_length_m"] = _mean([length for _, _, length, _ in table])
         out["touchdown_reach_m"] = _mean([feet_x[row, foot] - x[row] for row, foot, _, _ in table])
     out["stride_length_m"] = _mean([d for foot, rows in enumerate(touchdowns(events))
                                     for d in np.diff(feet_x[rows, foot])])

@@ -2,7 +2,8 @@
 step length at a commanded speed (``docs/environment.md``, "Gait clock").
 
 A stride of period T turns the phase phi once; the right foot's clock is phi, the left's
-phi + 1/2; each foot swings in the first ``env.swing_share`` of its period. ``reward.kgait``'s
+phi + 1/2; each foot swings for a share ``env.swing_share`` of its period, centred a quarter
+period after its clock's zero (:func:`swing_weights`). ``reward.kgait``'s
 feature is 1 - (1/2) sum_feet miss (:func:`followed`).
 """
 
