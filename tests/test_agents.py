@@ -171,11 +171,54 @@ def test_exploration_modules_take_the_scale():
         assert spread[0.2] / spread[0.1] == pytest.approx(2.0, rel=0.1), name
 
 
+def test_colored_noise_has_the_spectrum_it_is_asked_for():
+    """Unit RMS; white independent from step to step, pink and red ever more correlated; the power
+    spectrum's log-log slope is -beta."""
+    torch.manual_seed(0)
+    for beta, lag1 in ((0.0, (-0.02, 0.02)), (1.0, (0.5, 0.9)), (2.0, (0.95, 1.0))):
+        series = networks.colored_noise(beta, 400, (500,))
+        assert series.shape == (400, 500)
+        assert torch.allclose(series.pow(2).mean(dim=0), torch.ones(500), atol=1e-4)
+        correlation = float((series[1:] * series[:-1]).mean())
+        assert lag1[0] < correlation < lag1[1], (beta, correlation)
+        power = torch.fft.rfft(series, dim=0).abs().pow(2).mean(dim=1)[1:]
+        freqs = torch.fft.rfftfreq(400)[1:]
+        slope = torch.linalg.lstsq(torch.stack([freqs.log(), torch.ones_like(freqs)], 1), power.log()[:, None]).solution[0]
+        assert float(slope) == pytest.approx(-beta, abs=0.15), beta
+
+
+def test_pink_exploration_is_correlated_in_time_and_takes_the_scale():
+    """algo.noise_beta=1: TD3's exploration adds pink noise of the Gaussian's std, scaled by
+    set_noise_scale, successive actions' deviations correlated, and kept in the action's bounds."""
+    from tensordict import TensorDict
+
+    cfg = AlgoConfig(name="td3", noise_variance=0.01, noise_beta=1.0)
+    actor = networks.make_actor(cfg, 43, 10)
+    explore = networks.make_exploration(cfg, actor, SPEC)
+    td = TensorDict({"observation": torch.zeros(64, 43)}, [64])
+    with torch.no_grad():
+        clean = actor(td.clone())["action"]
+        runs = {}
+        for scale in (1.0, 2.0):
+            networks.set_noise_scale(explore, scale)
+            runs[scale] = torch.stack([explore(td.clone())["action"] - clean for _ in range(400)])
+    for scale, deviation in runs.items():
+        assert float(deviation.std()) == pytest.approx(0.1 * scale, rel=0.15), scale
+        assert float((deviation[1:] * deviation[:-1]).mean() / deviation.pow(2).mean()) > 0.5
+        assert float((deviation + clean).abs().max()) <= 1.0
+
+
 def test_bad_algo_values():
     with pytest.raises(ConfigError, match="name"):
         AlgoConfig(name="ppo")
     with pytest.raises(ConfigError, match="batch_size"):
         AlgoConfig(batch_size=-128)
+    with pytest.raises(ConfigError, match="noise_beta"):
+        AlgoConfig(name="td3", noise_beta=3.0)
+    with pytest.raises(ConfigError, match="noise_beta"):
+        AlgoConfig(name="ddpg", noise_beta=1.0)
+    with pytest.raises(ConfigError, match="noise_chunk_steps"):
+        AlgoConfig(name="td3", noise_chunk_steps=1)
 
 
 def test_critic_only_updates_leave_the_actor_alone():

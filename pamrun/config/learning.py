@@ -34,6 +34,12 @@ class AlgoConfig:
     noise_variance_min: float = 0.01  # floor of the decaying noise scale
     ou_theta: float = 0.15  # OU mean attraction (not in the thesis; TorchRL's default)
     ou_dt_s: float = 0.025  # OU time step = the control step Ts
+    # TD3's exploration noise over time has the power spectrum 1/f^noise_beta: 0 white (independent each step, TD3's
+    # Gaussian), 1 pink, 2 red. Eberhard et al., ICLR 2023 ("Pink noise is all you need"): pink explores better than
+    # white and OU across off-policy continuous control. Drawn in chunks of noise_chunk_steps control steps (400: one
+    # 10 s episode at 40 Hz), each action's series scaled to unit RMS; its std stays sqrt(noise_variance).
+    noise_beta: float = 0.0
+    noise_chunk_steps: int = 400
     # TD3 only (Fujimoto et al. 2018 defaults)
     policy_noise: float = 0.2  # TD3 target policy smoothing noise
     noise_clip: float = 0.5  # TD3 clip of the target policy noise
@@ -55,6 +61,10 @@ class AlgoConfig:
         _positive(self, "actor_lr", "critic_lr", "output_init_scale", "ou_dt_s", "grad_clip", "init_alpha")
         _non_negative(self, "noise_variance", "noise_decay", "noise_variance_min", "ou_theta", "policy_noise",
                       "noise_clip", "mirror_loss")
+        _require(0 <= self.noise_beta <= 2, "noise_beta", f"must lie in [0, 2] (0 white, 1 pink, 2 red), got {self.noise_beta}")
+        _require(self.noise_beta == 0 or self.name == "td3", "noise_beta",
+                 f"colors TD3's Gaussian exploration; {self.name} explores otherwise (ddpg: OU, ou_theta; sac: its own spread)")
+        _require(self.noise_chunk_steps >= 2, "noise_chunk_steps", f"must be >= 2, got {self.noise_chunk_steps}")
         _require(len(self.hidden_sizes) == 2 and min(self.hidden_sizes) > 0, "hidden_sizes",
                  f"needs two positive layer sizes, got {list(self.hidden_sizes)}")
         _require(self.critic in ("thesis", "concat"), "critic", f"must be thesis or concat, got {self.critic!r}")

@@ -7,7 +7,8 @@
   whose variance starts at 0.5 and decays by 1e-5 per step (Table 9.4, as MATLAB's
   ``VarianceDecayRate``).
 * ``td3``: the loss of ``TD3Loss`` (twin critics, target policy smoothing) with delayed
-  actor updates and Gaussian exploration, the thesis' proposed next step (§13).
+  actor updates and Gaussian exploration, the thesis' proposed next step (§13); with
+  ``algo.noise_beta`` the Gaussian is colored over time (pink: Eberhard et al., ICLR 2023).
 
 The losses are computed on plain tensors by :class:`Learner` (checked against TorchRL's).
 
@@ -157,11 +158,43 @@ def make_exploration(cfg: AlgoConfig, actor: TensorDictModule, action_spec) -> T
             eps_init=1.0,
             eps_end=1.0,  # the decay is set by set_noise_scale (exponential, as MATLAB's)
         )
+    elif cfg.noise_beta:
+        noise = ColoredNoiseModule(action_spec, math.sqrt(cfg.noise_variance), cfg.noise_beta, cfg.noise_chunk_steps)
     else:
         noise = AdditiveGaussianModule(
             spec=action_spec, sigma_init=1.0, sigma_end=1.0, mean=0.0, std=math.sqrt(cfg.noise_variance)
         )
     return TensorDictSequential(actor, noise)
+
+
+def colored_noise(beta: float, steps: int, shape: tuple[int, ...]) -> torch.Tensor:
+    """(steps, *shape) Gaussian series whose power spectrum along the first axis falls as 1/f^beta
+    (0 white, 1 pink, 2 red), each scaled to unit RMS: random Fourier coefficients of amplitude
+    f^(-beta/2), the lowest frequency standing in for f = 0 (Timmer & Koenig 1995)."""
+    freqs = torch.fft.rfftfreq(steps)
+    freqs[0] = freqs[1]
+    amplitude = (freqs ** (-beta / 2)).reshape(-1, *(1,) * len(shape))
+    coeffs = torch.complex(torch.randn(len(freqs), *shape), torch.randn(len(freqs), *shape)) * amplitude
+    series = torch.fft.irfft(coeffs, n=steps, dim=0)
+    return series / series.pow(2).mean(dim=0).sqrt()
+
+
+class ColoredNoiseModule(AdditiveGaussianModule):
+    """TD3's additive exploration noise, colored (``algo.noise_beta``): each action's noise is a
+    :func:`colored_noise` series through a chunk of ``chunk_steps`` control steps, then a fresh
+    chunk; its std and the ``sigma`` multiplier (:func:`set_noise_scale`) are the Gaussian's."""
+
+    def __init__(self, action_spec, std: float, beta: float, chunk_steps: int):
+        super().__init__(spec=action_spec, sigma_init=1.0, sigma_end=1.0, mean=0.0, std=std)
+        self.beta, self.chunk_steps = beta, chunk_steps
+        self._chunk, self._next = None, 0
+
+    def _add_noise(self, action: torch.Tensor) -> torch.Tensor:
+        if self._chunk is None or self._next == self.chunk_steps or self._chunk.shape[1:] != action.shape:
+            self._chunk, self._next = colored_noise(self.beta, self.chunk_steps, tuple(action.shape)), 0
+        noise = self._chunk[self._next].to(action)
+        self._next += 1
+        return self.spec[self.action_key].project(action + noise * self.std * self.sigma)
 
 
 def noise_scale(cfg: AlgoConfig, frames: int) -> float:
