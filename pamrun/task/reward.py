@@ -191,7 +191,7 @@ def foot_placement(t: Transition) -> float:
     sole's forward distance from the torso, from +E/2 at touchdown back to -E/2 at lift-off and forward
     again in swing), in units of half ``env.step_length_m``, each foot's capped at 1 (0 without a clock):
     a swing that lands its foot under the hip, not ahead of it, takes short steps at the clock's cadence.
-    A pay, as kgait's: charged as a cost at 16, the miss made falling backwards cheaper than walking."""
+    A pay, as kgait's: a cost this large would make ending the episode cheaper than walking."""
     env = t.env
     if not env.gait_clock:
         return 0.0
