@@ -19,9 +19,11 @@ from pamrun.task.clock import (
     foot_miss,
     foot_path_m,
     foot_wants,
+    knee_path_rad,
     swing_weights,
 )
 from pamrun.task.env import PamWalkerEnv
+from pamrun.task.reward import TERMS, Transition
 from pamrun.task.symmetry import action_map, mirror_state, observation_map
 from tests.conftest import compose_config
 from tests.test_train import TINY, train_here
@@ -445,3 +447,64 @@ def test_kplace_charges_the_feet_miss_of_the_clocks_path():
     *_, info = plain.step(np.zeros(10))
     assert info["reward_unweighted"]["kplace"] == 0.0
     plain.close()
+
+
+def test_the_knee_path_bends_a_swinging_knee_and_lands_it_straight():
+    """Each knee's path is 0 through its stance and at its lift-off and touchdown, peaks at mid-swing,
+    is symmetric about it, and the left's is the right's half a period later."""
+    share, peak = 0.4, math.radians(60)
+    phases = np.arange(0, 1, 0.01)
+    paths = np.array([knee_path_rad(p, share, peak) for p in phases])
+    assert (paths >= 0).all() and paths.max() == pytest.approx(peak, rel=1e-3)
+    right = paths[:, 0]
+    swinging = right > 1e-9
+    assert swinging.mean() == pytest.approx(share, abs=0.02)  # bent only while it swings
+    assert knee_path_rad(0.25 - share / 2, share, peak)[0] == pytest.approx(0.0, abs=1e-12)  # lift-off
+    assert knee_path_rad(0.25 + share / 2 - 1e-9, share, peak)[0] == pytest.approx(0.0, abs=1e-6)  # touchdown
+    assert knee_path_rad(0.25, share, peak)[0] == pytest.approx(peak)  # mid-swing
+    for d in (0.05, 0.1, 0.15):
+        assert knee_path_rad(0.25 - d, share, peak)[0] == pytest.approx(knee_path_rad(0.25 + d, share, peak)[0])
+        assert knee_path_rad(0.25 + d + 0.5, share, peak)[1] == pytest.approx(knee_path_rad(0.25 + d, share, peak)[0])
+
+
+def _knees_posed(env, knees_rad) -> float:
+    """kknee's feature with the knees bent ``knees_rad`` (right, left), the rest of the pose at reset."""
+    d = env.data
+    d.qpos[env.knee_addresses] = knees_rad
+    mujoco.mj_forward(env.model, d)
+    _, forces, soles, torso, _ = env._sense()
+    t = Transition(env, env.episode, torso, d.qpos.tolist(), np.zeros(10), np.zeros(10), soles, soles,
+                   [True, True], [True, True], forces)
+    return TERMS["kknee"](t)
+
+
+def test_kknee_pays_the_knees_on_the_clocks_knee_path():
+    """Knees posed on the clock's path pay 1; a swinging knee held straight at mid-swing, a full
+    miss (more than half the peak), pays 1/2; a knee bent a quarter of the peak off its path costs
+    1/8; standing still at the stopped clock pays ~1; without a clock 0. In info under kknee, weighted."""
+    env = PamWalkerEnv(env={**CLOCK, "knee_path_peak_deg": 60.0}, reward={"kknee": 3.0})
+    env.reset(seed=0)
+    env.episode.phase0, env.episode.steps = 0.25, 0  # the right foot at mid-swing, the left mid-stance
+    wanted = knee_path_rad(env.episode.phase(env.env_cfg), env.env_cfg.swing_share, math.radians(60))
+    assert wanted[0] == pytest.approx(math.radians(60)) and wanted[1] == 0.0
+    assert _knees_posed(env, wanted) == pytest.approx(1.0)
+    assert _knees_posed(env, [0.0, 0.0]) == pytest.approx(0.5)
+    assert _knees_posed(env, [wanted[0] - math.radians(15), 0.0]) == pytest.approx(1.0 - 0.5 * 0.25)
+    *_, info = env.step(np.zeros(10))
+    assert 0.0 <= info["reward_unweighted"]["kknee"] <= 1.0
+    assert info["reward_terms"]["kknee"] == pytest.approx(3.0 * info["reward_unweighted"]["kknee"])
+    env.close()
+    stopped = PamWalkerEnv(env={**CLOCK, "gait_follows_speed": True, "target_speed_m_s": 0.0}, reward={"kknee": 1.0})
+    stopped.reset(seed=0)
+    assert min(stopped.step(np.zeros(10))[-1]["reward_unweighted"]["kknee"] for _ in range(16)) > 0.95
+    stopped.close()
+    plain = PamWalkerEnv(reward={"kknee": 1.0})
+    plain.reset(seed=0)
+    assert plain.step(np.zeros(10))[-1]["reward_unweighted"]["kknee"] == 0.0
+    plain.close()
+
+
+def test_bad_knee_path_peak_fails_naming_the_key():
+    for bad in (0.0, -10.0, 150.0):
+        with pytest.raises(ConfigError, match="knee_path_peak_deg"):
+            PamWalkerEnv(env={**CLOCK, "knee_path_peak_deg": bad})

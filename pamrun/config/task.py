@@ -25,7 +25,8 @@ class RewardConfig:
           + kspeed exp(-((Vx - v*) / sigma)^2) - kslip slip - kair air - kstep steps
           + kgait (1 - clock miss) - kflight [no foot down] - kflat tilt - kland landing
           - kupright (roll^2 + pitch^2) + ktrack exp(-((Vx - v*) / sigma_track)^2)
-          - kdouble w_both [a foot up] + kplace (1 - path miss) (the last fifteen: 0 in the thesis)
+          - kdouble w_both [a foot up] + kplace (1 - path miss) + kknee (1 - knee miss)
+          (the last sixteen: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -63,6 +64,10 @@ class RewardConfig:
     # weight of the feet following the gait clock's foot path, 1 - (1/2) sum_feet min(((x_foot - x_torso - x*) / (L0 / 2))^2, 1),
     # x* from +E/2 at touchdown back to -E/2 at lift-off (E = 2 (1 - swing_share) L*), L0 = env.step_length_m; 0 without a clock
     kplace: float = 0.0
+    # weight of the knees following the gait clock's knee path, 1 - (1/2) sum_legs min(((k - k*) / (k_peak / 2))^2, 1):
+    # k* = k_peak sin(pi u) through a leg's swing (u its share; k_peak = env.knee_path_peak_deg), 0 in its
+    # stance, so a swinging knee is straight again when its foot lands; 0 without a clock
+    kknee: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -124,6 +129,9 @@ class EnvConfig:
     # Knee flexion [deg] at which reward.kgait charges a leg the clock stands on fully, its miss
     # the bend's share (pamrun.task.env, "Gait clock"): asks stance toward the knee's lock; 0 = off
     stance_knee_deg: float = 0.0
+    # Peak knee flexion [deg] of reward.kknee's knee path, at mid-swing: about 60 deg in human walking
+    # (Winter, Biomechanics and Motor Control of Human Movement, 4th ed. 2009; the issue's 40-70 deg)
+    knee_path_peak_deg: float = 60.0
     # The clock's period and reward.kstep's step length follow the episode's commanded speed v*,
     # each as its square root, so v* = 2 L* / T at every v* (pamrun's choice, after human walking;
     # the rule: pamrun.task.env, "Gait clock", gait_at_speed); at v* = 0 the clock stops, both feet asked down
@@ -150,6 +158,8 @@ class EnvConfig:
         _require(math.isfinite(self.target_speed_m_s), "target_speed_m_s", "must be finite")
         _non_negative(self, "gait_period_s")
         _require(0 < self.swing_share < 1, "swing_share", f"must lie in (0, 1), got {self.swing_share}")
+        _require(0 < self.knee_path_peak_deg <= 120, "knee_path_peak_deg",
+                 f"must lie in (0, 120], got {self.knee_path_peak_deg}")
         for name in ("swing_clearance_m", "swing_knee_deg", "stance_knee_deg"):
             _non_negative(self, name)
             _require(not getattr(self, name) or self.gait_period_s > 0, name,

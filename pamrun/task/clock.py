@@ -36,6 +36,12 @@ def both_down_weight(phase: float, swing_share: float) -> float:
     return (1.0 - right) * (1.0 - left)
 
 
+def since_lift_off(phase: float, foot: int, swing_share: float) -> float:
+    """A foot's own clock psi in [0, 1): 0 at its lift-off, ``swing_share`` at its touchdown (the
+    swing :func:`swing_weights` centres a quarter period after its clock's zero)."""
+    return (phase + 0.5 * foot - 0.25 + 0.5 * swing_share) % 1.0
+
+
 def foot_path_m(phase: float, swing_share: float, step_length_m: float) -> tuple[float, float]:
     """Where the clock wants the right and the left foot [m], forward of the torso, at this phase:
     each foot's sole moves back at a constant rate through its stance, from +E/2 at touchdown to
@@ -46,11 +52,22 @@ def foot_path_m(phase: float, swing_share: float, step_length_m: float) -> tuple
     reach = (1.0 - swing_share) * step_length_m  # E / 2
     path = []
     for foot in (0, 1):
-        psi = (phase + 0.5 * foot - 0.25 + 0.5 * swing_share) % 1.0  # 0 at lift-off
+        psi = since_lift_off(phase, foot, swing_share)
         if psi < swing_share:
             path.append(-reach * math.cos(math.pi * psi / swing_share))
         else:
             path.append(reach * (1.0 - 2.0 * (psi - swing_share) / (1.0 - swing_share)))
+    return path[0], path[1]
+
+
+def knee_path_rad(phase: float, swing_share: float, peak_rad: float) -> tuple[float, float]:
+    """The knee flexion [rad] the clock wants of the right and the left leg at this phase: peak
+    sin(pi u) at its swing's share u, 0 in its stance, so the swinging knee bends most at mid-swing
+    and is straight again when its foot lands."""
+    path = []
+    for foot in (0, 1):
+        psi = since_lift_off(phase, foot, swing_share)
+        path.append(peak_rad * math.sin(math.pi * psi / swing_share) if psi < swing_share else 0.0)
     return path[0], path[1]
 
 

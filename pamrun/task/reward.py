@@ -203,6 +203,21 @@ def foot_placement(t: Transition) -> float:
     return 1.0 - 0.5 * sum(min(((a - p) / scale) ** 2, 1.0) for a, p in zip(ahead, path))
 
 
+@term("kknee")
+def knee_path(t: Transition) -> float:
+    """1 - the knees' mean squared miss of the clock's knee path (pamrun.task.clock.knee_path_rad: a
+    bend that peaks at ``env.knee_path_peak_deg`` at mid-swing and is 0 at touchdown and in stance),
+    in units of half that peak, each capped at 1 (0 without a clock). A swing that still bends its
+    knee when the foot lands puts the foot down under the knee, not ahead of the hip. A pay, as kplace's."""
+    env = t.env
+    if not env.gait_clock:
+        return 0.0
+    cfg = env.env_cfg
+    peak = math.radians(cfg.knee_path_peak_deg)
+    wanted = (0.0, 0.0) if t.episode.clock_stopped else clock.knee_path_rad(t.episode.phase(cfg), cfg.swing_share, peak)
+    return 1.0 - 0.5 * sum(min(((t.qpos[adr] - w) / (0.5 * peak)) ** 2, 1.0) for adr, w in zip(env.knee_addresses, wanted))
+
+
 @term("kflat")
 def sole_edge(t: Transition) -> float:
     """Minus the summed side-to-side tilt [rad] of the feet on the ground at the step's end: a foot
