@@ -450,21 +450,23 @@ def test_kplace_charges_the_feet_miss_of_the_clocks_path():
 
 
 def test_the_knee_path_bends_a_swinging_knee_and_lands_it_straight():
-    """Each knee's path is 0 through its stance and at its lift-off and touchdown, peaks at mid-swing,
-    is symmetric about it, and the left's is the right's half a period later."""
+    """Each knee's path is 0 through its stance and at its lift-off and touchdown, rises to its peak
+    0.3 into the swing and falls from it, and the left's is the right's half a period later."""
     share, peak = 0.4, math.radians(60)
-    phases = np.arange(0, 1, 0.01)
-    paths = np.array([knee_path_rad(p, share, peak) for p in phases])
-    assert (paths >= 0).all() and paths.max() == pytest.approx(peak, rel=1e-3)
-    right = paths[:, 0]
-    swinging = right > 1e-9
-    assert swinging.mean() == pytest.approx(share, abs=0.02)  # bent only while it swings
-    assert knee_path_rad(0.25 - share / 2, share, peak)[0] == pytest.approx(0.0, abs=1e-12)  # lift-off
-    assert knee_path_rad(0.25 + share / 2 - 1e-9, share, peak)[0] == pytest.approx(0.0, abs=1e-6)  # touchdown
-    assert knee_path_rad(0.25, share, peak)[0] == pytest.approx(peak)  # mid-swing
-    for d in (0.05, 0.1, 0.15):
-        assert knee_path_rad(0.25 - d, share, peak)[0] == pytest.approx(knee_path_rad(0.25 + d, share, peak)[0])
-        assert knee_path_rad(0.25 + d + 0.5, share, peak)[1] == pytest.approx(knee_path_rad(0.25 + d, share, peak)[0])
+    lift_off = 0.25 - share / 2  # the right foot's (the clock centres its swing at phase 1/4)
+    paths = np.array([knee_path_rad(p, share, peak) for p in np.arange(0, 1, 0.001)])
+    assert (paths >= 0).all() and paths.max() == pytest.approx(peak, rel=1e-4)
+    assert (paths[:, 0] > 1e-9).mean() == pytest.approx(share, abs=0.002)  # bent only while it swings
+    assert knee_path_rad(lift_off, share, peak)[0] == 0.0
+    assert knee_path_rad(lift_off + share - 1e-9, share, peak)[0] == pytest.approx(0.0, abs=1e-6)  # touchdown
+    assert knee_path_rad(lift_off + share + 0.01, share, peak)[0] == 0.0
+    assert knee_path_rad(lift_off + 0.3 * share, share, peak)[0] == pytest.approx(peak)
+    swing = [knee_path_rad(lift_off + u * share, share, peak)[0] for u in np.arange(0.0, 1.0, 0.05)]
+    top = int(np.argmax(swing))
+    assert np.all(np.diff(swing[:top + 1]) > 0) and np.all(np.diff(swing[top:]) < 0)
+    for u in (0.1, 0.5, 0.8):
+        assert knee_path_rad(lift_off + u * share + 0.5, share, peak)[1] == pytest.approx(
+            knee_path_rad(lift_off + u * share, share, peak)[0])
 
 
 def _knees_posed(env, knees_rad) -> float:
@@ -479,12 +481,12 @@ def _knees_posed(env, knees_rad) -> float:
 
 
 def test_kknee_pays_the_knees_on_the_clocks_knee_path():
-    """Knees posed on the clock's path pay 1; a swinging knee held straight at mid-swing, a full
+    """Knees posed on the clock's path pay 1; a swinging knee held straight at its peak, a full
     miss (more than half the peak), pays 1/2; a knee bent a quarter of the peak off its path costs
     1/8; standing still at the stopped clock pays ~1; without a clock 0. In info under kknee, weighted."""
     env = PamWalkerEnv(env={**CLOCK, "knee_path_peak_deg": 60.0}, reward={"kknee": 3.0})
     env.reset(seed=0)
-    env.episode.phase0, env.episode.steps = 0.25, 0  # the right foot at mid-swing, the left mid-stance
+    env.episode.phase0 = 0.05 + 0.3 * 0.4  # the right knee's peak, 0.3 into its swing; the left in stance
     wanted = knee_path_rad(env.episode.phase(env.env_cfg), env.env_cfg.swing_share, math.radians(60))
     assert wanted[0] == pytest.approx(math.radians(60)) and wanted[1] == 0.0
     assert _knees_posed(env, wanted) == pytest.approx(1.0)

@@ -65,8 +65,8 @@ class RewardConfig:
     # x* from +E/2 at touchdown back to -E/2 at lift-off (E = 2 (1 - swing_share) L*), L0 = env.step_length_m; 0 without a clock
     kplace: float = 0.0
     # weight of the knees following the gait clock's knee path, 1 - (1/2) sum_legs min(((k - k*) / (k_peak / 2))^2, 1):
-    # k* = k_peak sin(pi u) through a leg's swing (u its share; k_peak = env.knee_path_peak_deg), 0 in its
-    # stance, so a swinging knee is straight again when its foot lands; 0 without a clock
+    # k* = k_peak sin(pi u^p) through a leg's swing (u its share, peaking at u = 0.3; k_peak = env.knee_path_peak_deg),
+    # 0 in its stance, so a swinging knee is straight again when its foot lands; 0 without a clock
     kknee: float = 0.0
 
     def __post_init__(self) -> None:

@@ -206,7 +206,7 @@ def foot_placement(t: Transition) -> float:
 @term("kknee")
 def knee_path(t: Transition) -> float:
     """1 - the knees' mean squared miss of the clock's knee path (pamrun.task.clock.knee_path_rad: a
-    bend that peaks at ``env.knee_path_peak_deg`` at mid-swing and is 0 at touchdown and in stance),
+    bend that peaks at ``env.knee_path_peak_deg`` 0.3 into the swing and is 0 at touchdown and in stance),
     in units of half that peak, each capped at 1 (0 without a clock). A swing that still bends its
     knee when the foot lands puts the foot down under the knee, not ahead of the hip. A pay, as kplace's."""
     env = t.env
