@@ -479,6 +479,27 @@ def test_knee_at_mid_stance_and_its_peak_in_swing():
     assert episode_metrics(steps, spec())["knee_midstance_deg"] == pytest.approx(math.degrees(0.5) - 3.0, abs=1e-9)
 
 
+def test_knee_at_touchdown_reads_the_landing_row():
+    """Each foot lands with its knee bent 30 deg in its touchdown row only, straight in the rest of
+    its stance: the knee at touchdown is 30, at mid-stance 0. Bent 30 deg in the first second's
+    touchdowns alone, none counts: 0. Without steps, NaN."""
+    steps = walk(210, 40, 20, 23, 0.4, 0.4)
+    down = steps["foot_force_n"] > 0
+    q = bent_knees(down, stance_deg=(0.0, 0.0), swing_deg=(60.0, 60.0))
+    landing = np.zeros_like(down)
+    landing[1:] = down[1:] & ~down[:-1]
+    late = steps["t_s"] > 1.0 + 1e-9
+    for foot, knee in ((0, 2), (1, 7)):
+        q[landing[:, foot], knee] = np.radians(30.0)
+    steps["joint_angle_rad"] = q
+    m = episode_metrics(steps, spec(joint_limits_rad=KNEE_LIMITS))
+    assert m["knee_touchdown_deg"] == pytest.approx(30.0, abs=1e-9) and m["knee_midstance_deg"] == 0.0
+    for foot, knee in ((0, 2), (1, 7)):
+        q[landing[:, foot] & late, knee] = 0.0
+    assert episode_metrics(steps, spec(joint_limits_rad=KNEE_LIMITS))["knee_touchdown_deg"] == 0.0
+    assert math.isnan(episode_metrics(still(100), spec())["knee_touchdown_deg"])
+
+
 def test_a_contact_flicker_of_one_row_is_no_phase():
     """A foot that lifts for one row in a stance and touches down for one row in a swing keeps
     one stance and one swing: the metrics of the clean motion. Split, the stance would add a

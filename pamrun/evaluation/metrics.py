@@ -77,6 +77,9 @@ Definitions (the manual of :func:`episode_metrics`):
 * **knee swing peak**: the largest knee flexion in a swing, averaged over the swings of both
   legs that begin after the first ``SETTLE_S`` (a human's, walking: about 60 deg; the first
   step from standing swings lower).
+* **knee at touchdown**: the knee's flexion in the row a foot touches down (the step table's
+  touchdowns), averaged over those after the first ``SETTLE_S`` (a human's at heel strike: about
+  5 deg; a knee still bent lands its foot under the knee, short of the hip's reach).
 * **cost of transport** (mechanical): sum over rows and joints of |torque x velocity| x dt,
   divided by m g d with d = x_m[-1] - x_m[0], the torso's forward distance. Each row's power
   stands for the control step that ends at it, so the rows after the first are summed (the
@@ -136,6 +139,7 @@ GAIT_METRICS = (
     "flight_share",
     "knee_midstance_deg",
     "knee_swing_peak_deg",
+    "knee_touchdown_deg",
 )
 HOP_WINDOW_S = 0.05  # two feet touching down this close together land as one (two control steps)
 SETTLE_S = 1.0  # the support shares and the knee's phases leave out the episode's first second
@@ -428,6 +432,9 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
     out["torso_pitch_deg"] = torso_pitch_deg(steps)
     out["double_support_share"], out["flight_share"] = support_shares(steps, contact)
     out["knee_midstance_deg"], out["knee_swing_peak_deg"] = knee_phases_deg(steps, events, spec)
+    if table:
+        flexion, t = knee_flexion_deg(steps["joint_angle_rad"], spec), np.asarray(steps["t_s"], float)
+        out["knee_touchdown_deg"] = _mean([flexion[row, foot] for row, foot, _, _ in table if t[row] > SETTLE_S + 1e-9])
 
     distance = float(x[-1] - x[0])
     power = np.abs(np.asarray(steps["joint_torque_nm"], float) * np.asarray(steps["joint_velocity_rad_s"], float))
