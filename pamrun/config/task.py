@@ -129,7 +129,7 @@ class EnvConfig:
     # Knee flexion [deg] at which reward.kgait charges a leg the clock stands on fully, its miss
     # the bend's share (pamrun.task.env, "Gait clock"): asks stance toward the knee's lock; 0 = off
     stance_knee_deg: float = 0.0
-    # Peak knee flexion [deg] of reward.kknee's knee path, at mid-swing: about 60 deg in human walking
+    # Peak knee flexion [deg] of reward.kknee's knee path, 0.3 into the swing: about 60 deg in human walking
     # (Winter, Biomechanics and Motor Control of Human Movement, 4th ed. 2009; the 40-70 deg)
     knee_path_peak_deg: float = 60.0
     # The clock's period and reward.kstep's step length follow the episode's commanded speed v*,
