@@ -63,6 +63,7 @@ def foot_path_m(phase: float, swing_share: float, step_length_m: float) -> tuple
 # Where in its swing a human knee bends most: about 60 deg at 73 % of the gait cycle, toe-off at ~62 %
 # (Winter, Biomechanics and Motor Control of Human Movement, 4th ed. 2009, ch. 4): (73 - 62) / 38.
 KNEE_PEAK_SWING_SHARE = 0.3
+_KNEE_POWER = math.log(0.5) / math.log(KNEE_PEAK_SWING_SHARE)  # p: u^p = 1/2 at that share
 
 
 def knee_path_rad(phase: float, swing_share: float, peak_rad: float) -> tuple[float, float]:
@@ -70,11 +71,10 @@ def knee_path_rad(phase: float, swing_share: float, peak_rad: float) -> tuple[fl
     its swing, peak sin(pi u^p) at the swing's share u, p = ln(1/2) / ln(:data:`KNEE_PEAK_SWING_SHARE`)
     so it bends most 0.3 into the swing; 0 in its stance. The knee bends quickly after lift-off and
     is straight again when its foot lands."""
-    power = math.log(0.5) / math.log(KNEE_PEAK_SWING_SHARE)
     path = []
     for foot in (0, 1):
         u = since_lift_off(phase, foot, swing_share) / swing_share
-        path.append(peak_rad * math.sin(math.pi * u**power) if u < 1.0 else 0.0)
+        path.append(peak_rad * math.sin(math.pi * u**_KNEE_POWER) if u < 1.0 else 0.0)
     return path[0], path[1]
 
 
