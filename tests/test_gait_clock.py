@@ -13,6 +13,7 @@ import pytest
 
 from pamrun.config import ConfigError, to_object
 from pamrun.task.clock import (
+    PUSH_OFF_SHARE,
     STANCE_WANTS,
     SWING_WANTS,
     both_down_weight,
@@ -20,6 +21,7 @@ from pamrun.task.clock import (
     foot_path_m,
     foot_wants,
     knee_path_rad,
+    push_off_path_rad,
     swing_weights,
 )
 from pamrun.task.env import PamWalkerEnv
@@ -469,15 +471,20 @@ def test_the_knee_path_bends_a_swinging_knee_and_lands_it_straight():
             knee_path_rad(lift_off + u * share, share, peak)[0])
 
 
-def _knees_posed(env, knees_rad) -> float:
-    """kknee's feature with the knees bent ``knees_rad`` (right, left), the rest of the pose at reset."""
+def _posed(env, key: str, addresses, angles_rad) -> float:
+    """Term ``key``'s feature with the joints at qpos ``addresses`` (right, left) at ``angles_rad``, the
+    rest of the pose at reset."""
     d = env.data
-    d.qpos[env.knee_addresses] = knees_rad
+    d.qpos[addresses] = angles_rad
     mujoco.mj_forward(env.model, d)
     _, forces, soles, torso, _ = env._sense()
     t = Transition(env, env.episode, torso, d.qpos.tolist(), np.zeros(10), np.zeros(10), soles, soles,
                    [True, True], [True, True], forces)
-    return TERMS["kknee"](t)
+    return TERMS[key](t)
+
+
+def _knees_posed(env, knees_rad) -> float:
+    return _posed(env, "kknee", env.knee_addresses, knees_rad)
 
 
 def test_kknee_pays_the_knees_on_the_clocks_knee_path():
@@ -496,17 +503,71 @@ def test_kknee_pays_the_knees_on_the_clocks_knee_path():
     assert 0.0 <= info["reward_unweighted"]["kknee"] <= 1.0
     assert info["reward_terms"]["kknee"] == pytest.approx(3.0 * info["reward_unweighted"]["kknee"])
     env.close()
-    stopped = PamWalkerEnv(env={**CLOCK, "gait_follows_speed": True, "target_speed_m_s": 0.0}, reward={"kknee": 1.0})
+    stopped, plain = _stopped_and_clockless("kknee", 16)
+    assert min(stopped) > 0.95 and plain == 0.0
+
+
+def _stopped_and_clockless(key: str, steps: int) -> tuple[list[float], float]:
+    """Term ``key``'s features over ``steps`` zero-action steps with the clock stopped (v* = 0), and its
+    first without a clock."""
+    stopped = PamWalkerEnv(env={**CLOCK, "gait_follows_speed": True, "target_speed_m_s": 0.0}, reward={key: 1.0})
     stopped.reset(seed=0)
-    assert min(stopped.step(np.zeros(10))[-1]["reward_unweighted"]["kknee"] for _ in range(16)) > 0.95
+    features = [stopped.step(np.zeros(10))[-1]["reward_unweighted"][key] for _ in range(steps)]
     stopped.close()
-    plain = PamWalkerEnv(reward={"kknee": 1.0})
+    plain = PamWalkerEnv(reward={key: 1.0})
     plain.reset(seed=0)
-    assert plain.step(np.zeros(10))[-1]["reward_unweighted"]["kknee"] == 0.0
+    feature = plain.step(np.zeros(10))[-1]["reward_unweighted"][key]
     plain.close()
+    return features, feature
 
 
-def test_bad_knee_path_peak_fails_naming_the_key():
-    for bad in (0.0, -10.0, 150.0):
-        with pytest.raises(ConfigError, match="knee_path_peak_deg"):
-            PamWalkerEnv(env={**CLOCK, "knee_path_peak_deg": bad})
+@pytest.mark.parametrize("key, bad", [("knee_path_peak_deg", 0.0), ("knee_path_peak_deg", -10.0),
+                                      ("knee_path_peak_deg", 150.0), ("push_off_peak_deg", 0.0),
+                                      ("push_off_peak_deg", -5.0), ("push_off_peak_deg", 60.0)])
+def test_bad_path_peak_fails_naming_the_key(key, bad):
+    with pytest.raises(ConfigError, match=key):
+        PamWalkerEnv(env={**CLOCK, key: bad})
+
+
+def test_the_push_off_plantarflexes_the_ankle_to_its_peak_at_lift_off():
+    """Each ankle is wanted over the last PUSH_OFF_SHARE of its period before lift-off, rising to the
+    peak at lift-off, and over the same share after it, falling back to 0; free (None) through the rest;
+    the left's is the right's half a period later."""
+    share, peak = 0.4, math.radians(20)
+    lift_off = 0.25 - share / 2  # the right foot's
+    assert push_off_path_rad(lift_off, share, peak)[0] == pytest.approx(peak)
+    wanted = [push_off_path_rad(p, share, peak)[0] for p in np.arange(0, 1, 0.001)]
+    assert np.mean([w is not None for w in wanted]) == pytest.approx(2 * PUSH_OFF_SHARE, abs=0.002)
+    rising = [push_off_path_rad(lift_off - PUSH_OFF_SHARE + d, share, peak)[0] for d in np.linspace(0.005, PUSH_OFF_SHARE - 0.005, 14)]
+    falling = [push_off_path_rad(lift_off + d, share, peak)[0] for d in np.linspace(0.0, PUSH_OFF_SHARE - 0.005, 14)]
+    assert np.all(np.diff(rising) > 0) and np.all(np.diff(falling) < 0)
+    assert rising[0] < 0.01 * peak and falling[-1] < 0.01 * peak
+    assert push_off_path_rad(lift_off + share, share, peak)[0] is None  # touchdown: free
+    assert push_off_path_rad(lift_off - 0.3, share, peak)[0] is None  # mid-stance: free
+    for d in (-0.05, 0.02, 0.1):
+        assert push_off_path_rad(lift_off + d + 0.5, share, peak)[1] == pytest.approx(push_off_path_rad(lift_off + d, share, peak)[0])
+
+
+def _ankles_posed(env, ankles_rad) -> float:
+    return _posed(env, "kpush", env.ankle_addresses, ankles_rad)
+
+
+def test_kpush_pays_the_ankles_on_the_clocks_push_off():
+    """At the right foot's lift-off, its ankle plantarflexed to the peak pays 1, held neutral (a full miss)
+    1/2, a quarter of the peak short 1 - 1/8; the left ankle, free in its swing, changes nothing. With the
+    clock stopped it pays 1; without a clock 0. In info under kpush, weighted."""
+    env = PamWalkerEnv(env={**CLOCK, "push_off_peak_deg": 20.0}, reward={"kpush": 3.0})
+    env.reset(seed=0)
+    env.episode.phase0 = 0.05  # the right foot's lift-off (0.25 - 0.4 / 2); the left mid-stance, free
+    wanted = push_off_path_rad(env.episode.phase(env.env_cfg), env.env_cfg.swing_share, math.radians(20))
+    assert wanted[0] == pytest.approx(math.radians(20)) and wanted[1] is None
+    assert _ankles_posed(env, [wanted[0], 0.0]) == pytest.approx(1.0)
+    assert _ankles_posed(env, [wanted[0], -0.5]) == pytest.approx(1.0)
+    assert _ankles_posed(env, [0.0, 0.0]) == pytest.approx(0.5)
+    assert _ankles_posed(env, [wanted[0] - math.radians(5), 0.0]) == pytest.approx(1.0 - 0.5 * 0.25)
+    *_, info = env.step(np.zeros(10))
+    assert 0.0 <= info["reward_unweighted"]["kpush"] <= 1.0
+    assert info["reward_terms"]["kpush"] == pytest.approx(3.0 * info["reward_unweighted"]["kpush"])
+    env.close()
+    stopped, plain = _stopped_and_clockless("kpush", 8)
+    assert stopped == [1.0] * 8 and plain == 0.0

@@ -78,6 +78,29 @@ def knee_path_rad(phase: float, swing_share: float, peak_rad: float) -> tuple[fl
     return path[0], path[1]
 
 
+# The human ankle's push-off: from its most dorsiflexed (about 10 deg, at ~48 % of the gait cycle) it
+# plantarflexes to about 20 deg at toe-off (~62 %) and is back near neutral by ~76 % (Winter, Biomechanics
+# and Motor Control of Human Movement, 4th ed. 2009, ch. 4): about 0.14 of the period each way.
+PUSH_OFF_SHARE = 0.14
+
+
+def push_off_path_rad(phase: float, swing_share: float, peak_rad: float) -> tuple[float | None, float | None]:
+    """The ankle plantarflexion [rad] the clock wants of the right and the left foot at this phase,
+    or None where it wants none: over the last :data:`PUSH_OFF_SHARE` of a foot's period before its
+    lift-off, peak sin^2(pi/2 w) (w from 0 to 1), and over the same share after it, peak cos^2(pi/2 w)
+    back to 0; free through the rest of the stance and the swing (a foot's clock: :func:`since_lift_off`)."""
+    path = []
+    for foot in (0, 1):
+        psi = since_lift_off(phase, foot, swing_share)
+        if psi > 1.0 - PUSH_OFF_SHARE:
+            path.append(peak_rad * math.sin(0.5 * math.pi * (psi - 1.0 + PUSH_OFF_SHARE) / PUSH_OFF_SHARE) ** 2)
+        elif psi < PUSH_OFF_SHARE:
+            path.append(peak_rad * math.cos(0.5 * math.pi * psi / PUSH_OFF_SHARE) ** 2)
+        else:
+            path.append(None)
+    return path[0], path[1]
+
+
 SWING_WANTS = ("swing_load", "swing_lift", "swing_knee")  # a swinging foot's wants, as misses
 STANCE_WANTS = ("stance_speed", "stance_load", "stance_knee")  # ... and a standing one's
 

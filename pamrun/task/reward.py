@@ -218,6 +218,25 @@ def knee_path(t: Transition) -> float:
     return 1.0 - 0.5 * sum(min(((t.qpos[adr] - w) / (0.5 * peak)) ** 2, 1.0) for adr, w in zip(env.knee_addresses, wanted))
 
 
+@term("kpush")
+def push_off(t: Transition) -> float:
+    """1 - the ankles' mean squared miss of the clock's push-off (pamrun.task.clock.push_off_path_rad: a
+    plantarflexion rising to ``env.push_off_peak_deg`` at a foot's lift-off and back to 0 after it), in
+    units of half that peak, each capped at 1; an ankle the clock leaves free misses nothing (0 without a
+    clock; 1 while it stands still). A stance ankle that stays loose to lift-off leaves the trailing foot
+    behind, dorsiflexed, and the step short. A pay, as kknee's."""
+    env = t.env
+    if not env.gait_clock:
+        return 0.0
+    if t.episode.clock_stopped:
+        return 1.0
+    cfg = env.env_cfg
+    peak = math.radians(cfg.push_off_peak_deg)
+    wanted = clock.push_off_path_rad(t.episode.phase(cfg), cfg.swing_share, peak)
+    return 1.0 - 0.5 * sum(min(((t.qpos[adr] - w) / (0.5 * peak)) ** 2, 1.0)
+                           for adr, w in zip(env.ankle_addresses, wanted) if w is not None)
+
+
 @term("kflat")
 def sole_edge(t: Transition) -> float:
     """Minus the summed side-to-side tilt [rad] of the feet on the ground at the step's end: a foot
