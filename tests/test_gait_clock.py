@@ -13,6 +13,7 @@ import pytest
 
 from pamrun.config import ConfigError, to_object
 from pamrun.task.clock import (
+    HIP_PEAK_SWING_SHARE,
     PUSH_OFF_SHARE,
     STANCE_WANTS,
     SWING_WANTS,
@@ -20,6 +21,7 @@ from pamrun.task.clock import (
     foot_miss,
     foot_path_m,
     foot_wants,
+    hip_path_rad,
     knee_path_rad,
     push_off_path_rad,
     swing_weights,
@@ -469,6 +471,8 @@ def test_the_knee_path_bends_a_swinging_knee_and_lands_it_straight():
     for u in (0.1, 0.5, 0.8):
         assert knee_path_rad(lift_off + u * share + 0.5, share, peak)[1] == pytest.approx(
             knee_path_rad(lift_off + u * share, share, peak)[0])
+    late = [knee_path_rad(lift_off + u * share, share, peak)[0] for u in (0.98, 0.99, 0.999)]
+    assert late[0] < 0.01 * peak and late[1] - late[2] < late[0] - late[1]  # at rest as it lands
 
 
 def _posed(env, key: str, addresses, angles_rad) -> float:
@@ -523,7 +527,8 @@ def _stopped_and_clockless(key: str, steps: int) -> tuple[list[float], float]:
 
 @pytest.mark.parametrize("key, bad", [("knee_path_peak_deg", 0.0), ("knee_path_peak_deg", -10.0),
                                       ("knee_path_peak_deg", 150.0), ("push_off_peak_deg", 0.0),
-                                      ("push_off_peak_deg", -5.0), ("push_off_peak_deg", 60.0)])
+                                      ("push_off_peak_deg", -5.0), ("push_off_peak_deg", 60.0),
+                                      ("hip_path_peak_deg", 0.0), ("hip_path_peak_deg", 50.0)])
 def test_bad_path_peak_fails_naming_the_key(key, bad):
     with pytest.raises(ConfigError, match=key):
         PamWalkerEnv(env={**CLOCK, key: bad})
@@ -570,4 +575,43 @@ def test_kpush_pays_the_ankles_on_the_clocks_push_off():
     assert info["reward_terms"]["kpush"] == pytest.approx(3.0 * info["reward_unweighted"]["kpush"])
     env.close()
     stopped, plain = _stopped_and_clockless("kpush", 8)
+    assert stopped == [1.0] * 8 and plain == 0.0
+
+
+def test_the_hip_path_flexes_a_swinging_thigh_and_retracts_it_before_touchdown():
+    """Through a leg's swing its hip is wanted from 0 at lift-off to the scaled peak flexion (negative)
+    0.6 into the swing, back to 5/6 of it at touchdown; free (None) in its stance; scaled by the step's
+    share; the left's is the right's half a period later."""
+    share, peak = 0.4, math.radians(30)
+    lift_off = 0.25 - share / 2
+    swing = [hip_path_rad(lift_off + u * share, share, peak, 1.0)[0] for u in np.linspace(0.0, 0.999, 200)]
+    top = int(np.argmin(swing))
+    assert swing[0] == pytest.approx(0.0, abs=1e-9) and min(swing) == pytest.approx(-peak, rel=1e-3)
+    assert top / 199 == pytest.approx(HIP_PEAK_SWING_SHARE, abs=0.01)
+    assert np.all(np.diff(swing[:top + 1]) < 0) and np.all(np.diff(swing[top:]) > 0)
+    assert swing[-1] == pytest.approx(-peak * 5 / 6, rel=1e-3)
+    assert hip_path_rad(lift_off + 0.6 * share, share, peak, 0.5)[0] == pytest.approx(-0.5 * peak)
+    assert hip_path_rad(lift_off + share + 0.1, share, peak, 1.0)[0] is None
+    for u in (0.2, 0.7):
+        assert hip_path_rad(lift_off + u * share + 0.5, share, peak, 1.0)[1] == pytest.approx(
+            hip_path_rad(lift_off + u * share, share, peak, 1.0)[0])
+
+
+def test_khip_pays_the_swinging_hips_on_the_clocks_hip_path():
+    """At the right leg's peak flexion, its hip on the path pays 1, held straight (a full miss) 1/2,
+    a quarter of the peak off 1 - 1/8; the left hip, in stance, changes nothing. Stopped clock: 1; no clock: 0."""
+    env = PamWalkerEnv(env={**CLOCK, "hip_path_peak_deg": 30.0}, reward={"khip": 2.0})
+    env.reset(seed=0)
+    env.episode.phase0 = 0.05 + 0.6 * 0.4  # 0.6 into the right leg's swing; the left in stance
+    assert env.episode.step_length_m == pytest.approx(env.env_cfg.step_length_m)
+    wanted = hip_path_rad(env.episode.phase(env.env_cfg), env.env_cfg.swing_share, math.radians(30), 1.0)
+    assert wanted[0] == pytest.approx(-math.radians(30)) and wanted[1] is None
+    assert _posed(env, "khip", env.hip_addresses, [wanted[0], 0.0]) == pytest.approx(1.0)
+    assert _posed(env, "khip", env.hip_addresses, [wanted[0], 0.3]) == pytest.approx(1.0)
+    assert _posed(env, "khip", env.hip_addresses, [0.0, 0.0]) == pytest.approx(0.5)
+    assert _posed(env, "khip", env.hip_addresses, [wanted[0] + math.radians(7.5), 0.0]) == pytest.approx(1.0 - 0.5 * 0.25)
+    *_, info = env.step(np.zeros(10))
+    assert info["reward_terms"]["khip"] == pytest.approx(2.0 * info["reward_unweighted"]["khip"])
+    env.close()
+    stopped, plain = _stopped_and_clockless("khip", 8)
     assert stopped == [1.0] * 8 and plain == 0.0

@@ -26,8 +26,8 @@ class RewardConfig:
           + kgait (1 - clock miss) - kflight [no foot down] - kflat tilt - kland landing
           - kupright (roll^2 + pitch^2) + ktrack exp(-((Vx - v*) / sigma_track)^2)
           - kdouble w_both [a foot up] + kplace (1 - path miss) + kknee (1 - knee miss)
-          + kpush (1 - push-off miss)
-          (the last seventeen: 0 in the thesis)
+          + kpush (1 - push-off miss) + khip (1 - hip miss)
+          (the last eighteen: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -66,13 +66,17 @@ class RewardConfig:
     # x* from +E/2 at touchdown back to -E/2 at lift-off (E = 2 (1 - swing_share) L*), L0 = env.step_length_m; 0 without a clock
     kplace: float = 0.0
     # weight of the knees following the gait clock's knee path, 1 - (1/2) sum_legs min(((k - k*) / (k_peak / 2))^2, 1):
-    # k* = k_peak sin(pi u^p) through a leg's swing (u its share, peaking at u = 0.3; k_peak = env.knee_path_peak_deg),
-    # 0 in its stance, so a swinging knee is straight again when its foot lands; 0 without a clock
+    # k* = k_peak sin^2(pi u^p) through a leg's swing (u its share, peaking at u = 0.3; k_peak = env.knee_path_peak_deg),
+    # 0 in its stance, so a swinging knee is straight, and at rest, when its foot lands; 0 without a clock
     kknee: float = 0.0
     # weight of the ankles following the gait clock's push-off, 1 - (1/2) sum_feet min(((a - a*) / (a_peak / 2))^2, 1):
     # a* a plantarflexion rising to a_peak = env.push_off_peak_deg at a foot's lift-off over the last 0.14 of its period
     # and back to 0 over the next 0.14; the ankle free otherwise (and while the clock stands still); 0 without a clock
     kpush: float = 0.0
+    # weight of the swinging hips following the gait clock's hip path, 1 - (1/2) sum_swinging min(((h - h*) / (h_peak / 2))^2, 1):
+    # h* from 0 at lift-off to a flexion h_peak = env.hip_path_peak_deg x L* / env.step_length_m 0.6 into the swing,
+    # 5/6 of it at touchdown; a hip in stance free (and while the clock stands still); 0 without a clock
+    khip: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -140,6 +144,9 @@ class EnvConfig:
     # Ankle plantarflexion [deg] reward.kpush wants at a foot's lift-off: about 20 deg in human walking
     # (Winter, Biomechanics and Motor Control of Human Movement, 4th ed. 2009)
     push_off_peak_deg: float = 20.0
+    # Hip flexion [deg] reward.khip wants of a swinging leg at its most, at env.step_length_m (scaled by the
+    # episode's step length): about 30 deg in human walking (Winter 2009; Perry, Gait Analysis, 1992)
+    hip_path_peak_deg: float = 30.0
     # The clock's period and reward.kstep's step length follow the episode's commanded speed v*,
     # each as its square root, so v* = 2 L* / T at every v* (pamrun's choice, after human walking;
     # the rule: pamrun.task.env, "Gait clock", gait_at_speed); at v* = 0 the clock stops, both feet asked down
@@ -170,6 +177,8 @@ class EnvConfig:
                  f"must lie in (0, 120], got {self.knee_path_peak_deg}")
         _require(0 < self.push_off_peak_deg <= 45, "push_off_peak_deg",
                  f"must lie in (0, 45], got {self.push_off_peak_deg}")
+        _require(0 < self.hip_path_peak_deg <= 45, "hip_path_peak_deg",
+                 f"must lie in (0, 45], got {self.hip_path_peak_deg}")
         for name in ("swing_clearance_m", "swing_knee_deg", "stance_knee_deg"):
             _non_negative(self, name)
             _require(not getattr(self, name) or self.gait_period_s > 0, name,

@@ -68,13 +68,40 @@ _KNEE_POWER = math.log(0.5) / math.log(KNEE_PEAK_SWING_SHARE)  # p: u^p = 1/2 at
 
 def knee_path_rad(phase: float, swing_share: float, peak_rad: float) -> tuple[float, float]:
     """The knee flexion [rad] the clock wants of the right and the left leg at this phase: through
-    its swing, peak sin(pi u^p) at the swing's share u, p = ln(1/2) / ln(:data:`KNEE_PEAK_SWING_SHARE`)
+    its swing, peak sin^2(pi u^p) at the swing's share u, p = ln(1/2) / ln(:data:`KNEE_PEAK_SWING_SHARE`)
     so it bends most 0.3 into the swing; 0 in its stance. The knee bends quickly after lift-off and
-    is straight again when its foot lands."""
+    is straight again, and at rest, when its foot lands (a knee still extending at touchdown throws
+    its foot forward onto the ground)."""
     path = []
     for foot in (0, 1):
         u = since_lift_off(phase, foot, swing_share) / swing_share
-        path.append(peak_rad * math.sin(math.pi * u**_KNEE_POWER) if u < 1.0 else 0.0)
+        path.append(peak_rad * math.sin(math.pi * u**_KNEE_POWER) ** 2 if u < 1.0 else 0.0)
+    return path[0], path[1]
+
+
+# The human hip through the swing (hip extension +): near 0 at toe-off (62 % of the gait cycle), flexed
+# most, about 30 deg, at ~85 %, and back to about 25 deg at heel strike (Winter 2009, ch. 4; Perry, Gait
+# Analysis, 1992): its peak (85 - 62) / 38 = 0.6 into the swing, 5/6 of it kept at touchdown.
+HIP_PEAK_SWING_SHARE = 0.6
+HIP_TOUCHDOWN_SHARE_OF_PEAK = 5.0 / 6.0
+
+
+def hip_path_rad(phase: float, swing_share: float, peak_rad: float, scale: float) -> tuple[float | None, float | None]:
+    """The hip pitch [rad] (extension +) the clock wants of the right and the left leg at this phase, or
+    None where it wants none: through its swing, from 0 at lift-off, flexing smoothly (a half cosine) to
+    -``scale`` x ``peak_rad`` :data:`HIP_PEAK_SWING_SHARE` into the swing, and back to
+    :data:`HIP_TOUCHDOWN_SHARE_OF_PEAK` of it at touchdown (the thigh retracts before the foot lands);
+    free through its stance. ``scale``: the episode's step length over ``env.step_length_m``."""
+    peak, path = -scale * peak_rad, []
+    for foot in (0, 1):
+        u = since_lift_off(phase, foot, swing_share) / swing_share
+        if u >= 1.0:
+            path.append(None)
+        elif u <= HIP_PEAK_SWING_SHARE:
+            path.append(peak * 0.5 * (1.0 - math.cos(math.pi * u / HIP_PEAK_SWING_SHARE)))
+        else:
+            back = 0.5 * (1.0 - math.cos(math.pi * (u - HIP_PEAK_SWING_SHARE) / (1.0 - HIP_PEAK_SWING_SHARE)))
+            path.append(peak * (1.0 - (1.0 - HIP_TOUCHDOWN_SHARE_OF_PEAK) * back))
     return path[0], path[1]
 
 

@@ -102,7 +102,7 @@ from pamrun.task import clock
 from pamrun.task.camera import Camera
 from pamrun.task.clock import gait_at_speed
 from pamrun.task.criteria import fell as fell_rule
-from pamrun.task.measures import ANKLE_PITCHES, CONTACT_WEIGHT_SHARE, KNEES, STOP_MARGIN_DEG, stop_bounds
+from pamrun.task.measures import ANKLE_PITCHES, CONTACT_WEIGHT_SHARE, HIP_PITCHES, KNEES, STOP_MARGIN_DEG, stop_bounds
 from pamrun.task.observation import (
     N_JOINTS,
     OBS_BASE,
@@ -230,6 +230,7 @@ class PamWalkerEnv(gym.Env):
         self.qpos_addresses = self.qpos_idx.tolist()
         self.knee_addresses = [self.qpos_addresses[k] for k in KNEES]  # right, left
         self.ankle_addresses = [self.qpos_addresses[a] for a in ANKLE_PITCHES]  # right, left
+        self.hip_addresses = [self.qpos_addresses[h] for h in HIP_PITCHES]  # right, left
         self._torso_id = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body_mod.TORSO)
         self._sole_ids = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"{side}_contact_{end}_{edge}")
                                    for side in body_mod.SIDES for end, edge in body_mod.SOLE_CORNERS])

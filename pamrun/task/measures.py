@@ -13,6 +13,7 @@ STOP_MARGIN_DEG = 2.0  # a joint 'at its stop': within this of a limit (reward.k
 # A foot carrying less than this share of the body weight is taken as off the ground.
 CONTACT_WEIGHT_SHARE = 0.05
 KNEES = [JOINTS.index(f"{side}_knee") for side in SIDES]  # each leg's knee column, in foot order (right, left)
+HIP_PITCHES = [JOINTS.index(f"{side}_hip_pitch") for side in SIDES]  # ... its hip's pitch (extension +)
 ANKLE_PITCHES = [JOINTS.index(f"{side}_ankle_pitch") for side in SIDES]  # ... and its ankle's pitch (plantarflexion +)
 _LEFT_EDGE = [i for i, (_, edge) in enumerate(SOLE_CORNERS) if edge == "left"]  # a sole's corners on its left edge
 _RIGHT_EDGE = [i for i, (_, edge) in enumerate(SOLE_CORNERS) if edge == "right"]

@@ -206,7 +206,7 @@ def foot_placement(t: Transition) -> float:
 @term("kknee")
 def knee_path(t: Transition) -> float:
     """1 - the knees' mean squared miss of the clock's knee path (pamrun.task.clock.knee_path_rad: a
-    bend that peaks at ``env.knee_path_peak_deg`` 0.3 into the swing and is 0 at touchdown and in stance),
+    bend that peaks at ``env.knee_path_peak_deg`` 0.3 into the swing and is 0, at rest, at touchdown and in stance),
     in units of half that peak, each capped at 1 (0 without a clock). A swing that still bends its
     knee when the foot lands puts the foot down under the knee, not ahead of the hip. A pay, as kplace's."""
     env = t.env
@@ -216,6 +216,26 @@ def knee_path(t: Transition) -> float:
     peak = math.radians(cfg.knee_path_peak_deg)
     wanted = (0.0, 0.0) if t.episode.clock_stopped else clock.knee_path_rad(t.episode.phase(cfg), cfg.swing_share, peak)
     return 1.0 - 0.5 * sum(min(((t.qpos[adr] - w) / (0.5 * peak)) ** 2, 1.0) for adr, w in zip(env.knee_addresses, wanted))
+
+
+@term("khip")
+def hip_path(t: Transition) -> float:
+    """1 - the swinging hips' mean squared miss of the clock's hip path (pamrun.task.clock.hip_path_rad: a
+    flexion to ``env.hip_path_peak_deg`` x L*/``env.step_length_m`` 0.6 into the swing, 5/6 of it kept at
+    touchdown), in units of half that peak, each capped at 1; a hip in stance misses nothing (0 without a
+    clock; 1 while it stands still). A swing whose thigh flexes little and retracts early lands its foot
+    under the hip: the step is short whatever the foot's path asks. A pay, as kknee's."""
+    env = t.env
+    if not env.gait_clock:
+        return 0.0
+    if t.episode.clock_stopped:
+        return 1.0
+    cfg = env.env_cfg
+    scale = t.episode.step_length_m / cfg.step_length_m
+    peak = math.radians(cfg.hip_path_peak_deg)
+    wanted = clock.hip_path_rad(t.episode.phase(cfg), cfg.swing_share, peak, scale)
+    return 1.0 - 0.5 * sum(min(((t.qpos[adr] - w) / (0.5 * peak * scale)) ** 2, 1.0)
+                           for adr, w in zip(env.hip_addresses, wanted) if w is not None)
 
 
 @term("kpush")
