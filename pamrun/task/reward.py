@@ -215,7 +215,13 @@ def knee_path(t: Transition) -> float:
     cfg = env.env_cfg
     peak = math.radians(cfg.knee_path_peak_deg)
     wanted = (0.0, 0.0) if t.episode.clock_stopped else clock.knee_path_rad(t.episode.phase(cfg), cfg.swing_share, peak)
-    return 1.0 - 0.5 * sum(min(((t.qpos[adr] - w) / (0.5 * peak)) ** 2, 1.0) for adr, w in zip(env.knee_addresses, wanted))
+    return _joint_path_pay(t.qpos, env.knee_addresses, wanted, 0.5 * peak)
+
+
+def _joint_path_pay(qpos: list[float], addresses: list[int], wanted, scale_rad: float) -> float:
+    """1 - (1/2) sum over the right and left joint at ``addresses`` of min(((q - q*) / scale)^2, 1), a joint
+    whose wanted q* is None missing nothing: the joint-path terms' feature."""
+    return 1.0 - 0.5 * sum(min(((qpos[adr] - w) / scale_rad) ** 2, 1.0) for adr, w in zip(addresses, wanted) if w is not None)
 
 
 @term("khip")
@@ -225,17 +231,13 @@ def hip_path(t: Transition) -> float:
     touchdown), in units of half that peak, each capped at 1; a hip in stance misses nothing (0 without a
     clock; 1 while it stands still). A swing whose thigh flexes little and retracts early lands its foot
     under the hip: the step is short whatever the foot's path asks. A pay, as kknee's."""
-    env = t.env
-    if not env.gait_clock:
-        return 0.0
-    if t.episode.clock_stopped:
-        return 1.0
-    cfg = env.env_cfg
+    env, cfg = t.env, t.env.env_cfg
+    if not env.gait_clock or t.episode.clock_stopped:
+        return float(env.gait_clock)
     scale = t.episode.step_length_m / cfg.step_length_m
     peak = math.radians(cfg.hip_path_peak_deg)
     wanted = clock.hip_path_rad(t.episode.phase(cfg), cfg.swing_share, peak, scale)
-    return 1.0 - 0.5 * sum(min(((t.qpos[adr] - w) / (0.5 * peak * scale)) ** 2, 1.0)
-                           for adr, w in zip(env.hip_addresses, wanted) if w is not None)
+    return _joint_path_pay(t.qpos, env.hip_addresses, wanted, 0.5 * peak * scale)
 
 
 @term("kpush")
@@ -245,16 +247,12 @@ def push_off(t: Transition) -> float:
     units of half that peak, each capped at 1; an ankle the clock leaves free misses nothing (0 without a
     clock; 1 while it stands still). A stance ankle that stays loose to lift-off leaves the trailing foot
     behind, dorsiflexed, and the step short. A pay, as kknee's."""
-    env = t.env
-    if not env.gait_clock:
-        return 0.0
-    if t.episode.clock_stopped:
-        return 1.0
-    cfg = env.env_cfg
+    env, cfg = t.env, t.env.env_cfg
+    if not env.gait_clock or t.episode.clock_stopped:
+        return float(env.gait_clock)
     peak = math.radians(cfg.push_off_peak_deg)
     wanted = clock.push_off_path_rad(t.episode.phase(cfg), cfg.swing_share, peak)
-    return 1.0 - 0.5 * sum(min(((t.qpos[adr] - w) / (0.5 * peak)) ** 2, 1.0)
-                           for adr, w in zip(env.ankle_addresses, wanted) if w is not None)
+    return _joint_path_pay(t.qpos, env.ankle_addresses, wanted, 0.5 * peak)
 
 
 @term("kflat")
