@@ -158,6 +158,24 @@ def test_hop_share_tells_hops_from_steps():
     assert math.isnan(episode_metrics(still(20), spec())["hop_share"])  # no touchdown
 
 
+def test_retouch_share_counts_split_stances():
+    """Alternating feet: 0. The right stance split by a 3-row (75 ms) lift in each 40-row stride: the
+    right foot touches down twice running in 3 of the 10 pairs of touchdowns (its first touchdown
+    is row 11: it starts down). A 1-row flicker is no lift: 0."""
+    assert episode_metrics(walk(200, 40, 20, 24, 0.4, 0.4), spec())["retouch_share"] == 0.0
+    i = np.arange(160)
+
+    def split(lift_rows: int) -> float:
+        right = (i % 40 < 24) & ~((i % 40 >= 8) & (i % 40 < 8 + lift_rows))
+        left = (i - 20) % 40 < 24
+        down = np.stack([right, left], axis=1)
+        return episode_metrics(still(160, foot_force_n=np.where(down, 300.0, 0.0)), spec())["retouch_share"]
+
+    assert split(3) == pytest.approx(3 / 10)
+    assert split(1) == 0.0
+    assert math.isnan(episode_metrics(still(20), spec())["retouch_share"])
+
+
 def test_touchdowns_are_rising_edges_only():
     force = np.array([[300, 0], [300, 0], [0, 300], [300, 300], [300, 0], [0, 0], [300, 300]], float)
     down = contacts({"foot_force_n": force}, spec(contact_threshold_n=10.0))

@@ -32,6 +32,7 @@ GAIT_SCALARS = {
     "step_time_symmetry": "step_time_symmetry_mean",
     "step_length_symmetry": "step_length_symmetry_mean",
     "hop_share": "hop_share_mean",
+    "retouch_share": "retouch_share_mean",
     "stop_share_gait_max": "stop_share_gait_max_mean",
     "knee_swing_stop_share": "knee_swing_stop_share_mean",
     "swing_clearance_m": "swing_clearance_m_mean",

@@ -38,6 +38,9 @@ Definitions (the manual of :func:`episode_metrics`):
 * **hop share**: the share of the touchdowns that come within ``HOP_WINDOW_S`` of a touchdown
   of the other foot (both feet landing together: a hop or bound, not a step; a walk's
   footfalls alternate, 0; two-footed hopping, 1).
+* **re-touch share**: the share of the touchdowns that follow a touchdown of the same foot,
+  none of the other foot's between (a stance split by a lift of at least ``MIN_PHASE_S``, or a
+  hop on one leg; a walk's footfalls alternate, 0). Step frequency counts each as a step.
 * **duty factor**: the share of the rows in which a foot is in contact, averaged over both
   feet (over the whole episode: standing still is 1).
 * **stop share** of a joint: the share of the rows in which its angle lies within
@@ -123,6 +126,7 @@ GAIT_METRICS = (
     "step_time_symmetry",
     "step_length_symmetry",
     "hop_share",
+    "retouch_share",
     "duty_factor",
     *(f"stop_share_{joint}" for joint in JOINTS),
     "stop_share_max",
@@ -236,6 +240,15 @@ def hop_share(steps: dict, contact: np.ndarray) -> float:
             for own, other in ((times[0], times[1]), (times[1], times[0]))]
     together = sum(int(np.count_nonzero(gap <= HOP_WINDOW_S + 1e-9)) for gap in gaps)
     return together / sum(map(len, times))
+
+
+def retouch_share(contact: np.ndarray) -> float:
+    """Share of the touchdowns (after the first) that follow one of the same foot (NaN with fewer
+    than two touchdowns)."""
+    feet = [foot for _, foot in sorted((int(row), foot) for foot, rows in enumerate(touchdowns(contact)) for row in rows)]
+    if len(feet) < 2:
+        return math.nan
+    return sum(a == b for a, b in zip(feet[:-1], feet[1:])) / (len(feet) - 1)
 
 
 def symmetry_index(right: float, left: float) -> float:
@@ -416,6 +429,7 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
     out["step_time_symmetry"] = symmetry_index(*(_mean([s[3] for s in per_foot[f]]) for f in (RIGHT, LEFT)))
     out["step_length_symmetry"] = symmetry_index(*(_mean([s[2] for s in per_foot[f]]) for f in (RIGHT, LEFT)))
     out["hop_share"] = hop_share(steps, events)
+    out["retouch_share"] = retouch_share(events)
     out["duty_factor"] = float(contact.mean())
 
     shares = stop_shares(steps["joint_angle_rad"], spec)
