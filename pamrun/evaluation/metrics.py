@@ -242,10 +242,10 @@ def hop_share(steps: dict, contact: np.ndarray) -> float:
     return together / sum(map(len, times))
 
 
-def retouch_share(contact: np.ndarray) -> float:
-    """Share of the touchdowns (after the first) that follow one of the same foot (NaN with fewer
-    than two touchdowns)."""
-    feet = [foot for _, foot in sorted((int(row), foot) for foot, rows in enumerate(touchdowns(contact)) for row in rows)]
+def retouch_share(table: list[tuple[int, int, float, float]]) -> float:
+    """Share of the touchdowns of a :func:`step_table` (after the first) that follow one of the same
+    foot (NaN with fewer than two touchdowns)."""
+    feet = [foot for _, foot, _, _ in table]
     if len(feet) < 2:
         return math.nan
     return sum(a == b for a, b in zip(feet[:-1], feet[1:])) / (len(feet) - 1)
@@ -429,7 +429,7 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
     out["step_time_symmetry"] = symmetry_index(*(_mean([s[3] for s in per_foot[f]]) for f in (RIGHT, LEFT)))
     out["step_length_symmetry"] = symmetry_index(*(_mean([s[2] for s in per_foot[f]]) for f in (RIGHT, LEFT)))
     out["hop_share"] = hop_share(steps, events)
-    out["retouch_share"] = retouch_share(events)
+    out["retouch_share"] = retouch_share(table)
     out["duty_factor"] = float(contact.mean())
 
     shares = stop_shares(steps["joint_angle_rad"], spec)
