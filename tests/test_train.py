@@ -355,7 +355,8 @@ def test_resume_takes_a_new_budget_and_names_what_it_ignores(tmp_path):
 def test_a_run_started_from_a_trained_agent_begins_with_its_networks(tmp_path):
     """``train.init_from``: a run's last.pt gives the new run its actor, critics, targets and replay
     buffer (not the buffer where reward.*, env.*, body.* or muscle.* differs, or where its transitions lack a term this run's
-    stages weigh, one its run never computed); an agent file its actor alone (the critics new,
+    stages weigh, one its run never computed, or where the last.pt was copied without its buffer
+    folder); an agent file its actor alone (the critics new,
     the buffer empty); the agent is evaluated at frame 0; the counters start at 0. With no updates
     the networks end as they began, so last.pt shows what was taken."""
     source = tmp_path / "source"
@@ -409,12 +410,21 @@ def test_a_run_started_from_a_trained_agent_begins_with_its_networks(tmp_path):
     assert train_here(tmp_path / "from_moved", *TINY, *still, "+train.walk_weights.kslip=2",
                       f"train.init_from={moved / 'last.pt'}") == "max_frames"
     assert torch.load(tmp_path / "from_moved" / "checkpoints" / "last.pt", weights_only=True)["buffer"]["length"] == 800
+    alone = tmp_path / "alone"  # a last.pt copied without its buffer: its networks, an empty buffer
+    alone.mkdir()
+    shutil.copy(f_dir / "checkpoints" / "last.pt", alone)
+    assert train_here(tmp_path / "from_alone", *TINY, *still, "+train.walk_weights.kslip=2",
+                      f"train.init_from={alone / 'last.pt'}") == "max_frames"
+    e = torch.load(tmp_path / "from_alone" / "checkpoints" / "last.pt", weights_only=True)
+    assert e["buffer"]["length"] == 400
+    assert all(torch.equal(v, e["networks"]["critics"][k]) for k, v in a["networks"]["critics"].items())
 
 
 @pytest.mark.slow
 def test_an_agent_that_does_not_fit_fails_before_the_run_dir(tmp_path):
-    """A missing file, or an agent of another observation size (here one told its commanded speed),
-    stops ``pamrun train`` naming train.init_from before anything is written."""
+    """A missing file, an agent of another observation size (here one told its commanded speed), or a
+    last.pt whose replay buffer, which this run would take, lacks a file, stops ``pamrun train``
+    naming train.init_from before anything is written."""
     source = tmp_path / "source"
     assert train_here(source, *TINY, "train.max_frames=200", "train.eval_every_frames=0",
                       "env.speed_command=true") == "max_frames"
@@ -423,6 +433,14 @@ def test_an_agent_that_does_not_fit_fails_before_the_run_dir(tmp_path):
         proc = run_pamrun("train", *TINY, f"train.init_from={init}", f"hydra.run.dir={run_dir}")
         assert proc.returncode != 0 and "train.init_from" in proc.stderr and words in proc.stderr, proc.stderr[-2000:]
         assert not run_dir.exists()
+    partial = tmp_path / "partial"  # a last.pt with its buffer copied in part: the missing file is named
+    shutil.copytree(source / "checkpoints", partial)
+    victim = max((p for p in partial.glob("buffer*/**/*") if p.is_file()), key=lambda p: p.stat().st_size)
+    victim.unlink()
+    proc = run_pamrun("train", *TINY, "env.speed_command=true", f"train.init_from={partial / 'last.pt'}",
+                      f"hydra.run.dir={run_dir}")
+    assert proc.returncode != 0 and "replay buffer file missing" in proc.stderr, proc.stderr[-2000:]
+    assert victim.name in proc.stderr and not run_dir.exists()
 
 
 def test_a_run_from_a_trained_agent_has_learned_before_frame_0(cfg):

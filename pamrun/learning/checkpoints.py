@@ -332,6 +332,21 @@ def load_last(ckpt_dir: Path, learner, buffer) -> dict:
     return counters
 
 
+def check_buffer_sizes(ckpt_dir: Path, record: dict) -> Path:
+    """The folder of the replay buffer a ``last.pt`` in ``ckpt_dir`` names (``record``: its
+    ``"buffer"`` entry), each of its files there with the size it recorded (no checksums: quick);
+    :class:`CheckpointError` naming the first file missing or of another size."""
+    folder = ckpt_dir / record["dir"]
+    for rel, (size, _) in record["files"].items():
+        path = folder / rel
+        if not path.is_file():
+            raise CheckpointError(path, "replay buffer file missing")
+        if path.stat().st_size != size:
+            raise CheckpointError(path, f"replay buffer file truncated or grown: {path.stat().st_size} bytes, "
+                                        f"the checkpoint wrote {size}")
+    return folder
+
+
 def load_buffer(ckpt_dir: Path, record: dict | None, buffer) -> None:
     """The replay buffer a ``last.pt`` in ``ckpt_dir`` names (``record``: its ``"buffer"`` entry),
     each file checked against the size and checksum it recorded; :class:`CheckpointError` naming the file."""
@@ -340,14 +355,9 @@ def load_buffer(ckpt_dir: Path, record: dict | None, buffer) -> None:
         if folder is None:
             raise CheckpointError(ckpt_dir / "buffer", "no replay buffer beside last.pt")
     else:
-        folder = ckpt_dir / record["dir"]
-        found = file_fingerprints(folder) if folder.is_dir() else {}
+        folder = check_buffer_sizes(ckpt_dir, record)
+        found = file_fingerprints(folder)
         for rel, (size, crc) in record["files"].items():
-            if rel not in found:
-                raise CheckpointError(folder / rel, "replay buffer file missing")
-            if found[rel][0] != size:
-                raise CheckpointError(folder / rel, f"replay buffer file truncated or grown: {found[rel][0]} bytes, "
-                                                    f"the checkpoint wrote {size}")
             if found[rel][1] != crc:
                 raise CheckpointError(folder / rel, "replay buffer file changed since the checkpoint (checksum)")
     try:
