@@ -24,6 +24,7 @@ from pamrun.task.clock import (
     hip_path_rad,
     knee_path_rad,
     push_off_path_rad,
+    since_lift_off,
     swing_weights,
 )
 from pamrun.task.env import PamWalkerEnv
@@ -400,6 +401,63 @@ def test_kdouble_charges_a_foot_up_while_the_clock_stands_both():
     mujoco.mj_forward(plain.model, plain.data)
     *_, info = plain.step(np.zeros(10))
     assert info["reward_unweighted"]["kdouble"] == 0.0
+    plain.close()
+
+
+def _contacts(env, before: list[bool], after: list[bool]) -> float:
+    """klift's feature for a step whose feet were on the ground ``before`` it and are ``after`` it."""
+    _, forces, soles, torso, _ = env._sense()
+    t = Transition(env, env.episode, torso, env.data.qpos.tolist(), np.zeros(10), np.zeros(10), soles, soles,
+                   before, after, forces)
+    return TERMS["klift"](t)
+
+
+def test_klift_charges_a_foot_leaving_the_ground_early_in_its_stance():
+    """A foot that leaves the ground costs 1 in the first half of its clock's stance (from its touchdown,
+    psi = sigma, to psi = (1 + sigma) / 2) and nothing elsewhere, its swing and late stance included;
+    staying down, staying up or landing costs nothing; the left's half is the right's half a period on;
+    while the clock stands still every lift costs 1; without a clock 0. In a real step, the robot lifted
+    off the floor early in the right foot's stance, the left's clock swinging it, pays -1, weighted in info."""
+    env = PamWalkerEnv(env=CLOCK, reward={"klift": 3.0})
+    env.reset(seed=0)
+    sigma = env.env_cfg.swing_share
+    seen = set()
+    for phase0 in np.linspace(0.0, 1.0, 80, endpoint=False):
+        env.episode.phase0 = float(phase0)
+        phase = env.episode.phase(env.env_cfg)
+        early = [sigma <= since_lift_off(phase, f, sigma) < 0.5 * (1 + sigma) for f in (0, 1)]
+        assert early[1] == (sigma <= since_lift_off(phase + 0.5, 0, sigma) < 0.5 * (1 + sigma))
+        assert not all(early)
+        seen.add(tuple(early))
+        assert _contacts(env, [True, True], [False, True]) == -float(early[0])
+        assert _contacts(env, [True, True], [True, False]) == -float(early[1])
+        assert _contacts(env, [True, True], [False, False]) == -float(sum(early))
+        for before, after in (([True, True], [True, True]), ([False, False], [False, False]),
+                              ([False, False], [True, True]), ([False, True], [True, True])):
+            assert _contacts(env, before, after) == 0.0
+    assert seen == {(True, False), (False, True), (False, False)}
+    dt_share = env.env_cfg.control_dt_s / env.env_cfg.gait_period_s
+    env.episode.phase0 = 0.6 - 4 * dt_share  # after 5 steps: the right foot 0.1 into its stance's first half
+    for _ in range(4):
+        _, _, fell, _, info = env.step(np.zeros(10))
+    assert min(info["foot_force_n"]) > 0.05 * env.weight_n and info["reward_unweighted"]["klift"] == 0.0
+    env.data.qpos[2] += 0.3
+    env.data.qvel[:] = 0.0
+    mujoco.mj_forward(env.model, env.data)
+    *_, info = env.step(np.zeros(10))
+    phase = env.gait_phase()
+    assert sigma < since_lift_off(phase, 0, sigma) < 0.5 * (1 + sigma) and max(info["foot_force_n"]) < 0.05 * env.weight_n
+    assert info["reward_unweighted"]["klift"] == -1.0 and info["reward_terms"]["klift"] == pytest.approx(-3.0)
+    env.close()
+    stopped = PamWalkerEnv(env={**CLOCK, "gait_follows_speed": True, "target_speed_m_s": 0.0}, reward={"klift": 1.0})
+    stopped.reset(seed=0)
+    assert stopped.episode.clock_stopped
+    assert _contacts(stopped, [True, True], [False, False]) == -2.0
+    assert _contacts(stopped, [True, True], [True, True]) == 0.0
+    stopped.close()
+    plain = PamWalkerEnv(reward={"klift": 1.0})
+    plain.reset(seed=0)
+    assert _contacts(plain, [True, True], [False, False]) == 0.0
     plain.close()
 
 

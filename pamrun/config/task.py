@@ -26,8 +26,8 @@ class RewardConfig:
           + kgait (1 - clock miss) - kflight [no foot down] - kflat tilt - kland landing
           - kupright (roll^2 + pitch^2) + ktrack exp(-((Vx - v*) / sigma_track)^2)
           - kdouble w_both [a foot up] + kplace (1 - path miss) + kknee (1 - knee miss)
-          + kpush (1 - push-off miss) + khip (1 - hip miss)
-          (the last eighteen: 0 in the thesis)
+          + kpush (1 - push-off miss) + khip (1 - hip miss) - klift n_lifts
+          (the last nineteen: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -77,6 +77,9 @@ class RewardConfig:
     # h* from 0 at lift-off to a flexion h_peak = env.hip_path_peak_deg x L* / env.step_length_m 0.6 into the swing,
     # 5/6 of it at touchdown; a hip in stance free (and while the clock stands still); 0 without a clock
     khip: float = 0.0
+    # weight of the feet leaving the ground in the first half of the gait clock's stance (any foot while it
+    # stands still), one per lift: a stance split by a bounce after its landing; 0 without a clock
+    klift: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):

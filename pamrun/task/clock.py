@@ -42,6 +42,12 @@ def since_lift_off(phase: float, foot: int, swing_share: float) -> float:
     return (phase + 0.5 * foot - 0.25 + 0.5 * swing_share) % 1.0
 
 
+def in_early_stance(phase: float, foot: int, swing_share: float) -> bool:
+    """Whether a foot's clock is in the first half of its stance, from its touchdown (psi = ``swing_share``)
+    to halfway to its next lift-off (:func:`since_lift_off`)."""
+    return swing_share <= since_lift_off(phase, foot, swing_share) < 0.5 * (1.0 + swing_share)
+
+
 def foot_path_m(phase: float, swing_share: float, step_length_m: float) -> tuple[float, float]:
     """Where the clock wants the right and the left foot [m], forward of the torso, at this phase:
     each foot's sole moves back at a constant rate through its stance, from +E/2 at touchdown to

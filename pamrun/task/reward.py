@@ -255,6 +255,20 @@ def push_off(t: Transition) -> float:
     return _joint_path_pay(t.qpos, env.ankle_addresses, wanted, 0.5 * peak)
 
 
+@term("klift")
+def early_lift(t: Transition) -> float:
+    """Minus the number of feet that leave the ground in the step in the first half of their clock's
+    stance (pamrun.task.clock.in_early_stance; any foot while it stands still): a stance split by a
+    bounce after its landing (0 without a clock). Each lift is charged once, as kland charges each
+    landing; a foot lifting late in its stance, before its swing, is kdouble's."""
+    env = t.env
+    if not env.gait_clock:
+        return 0.0
+    stopped, phase = t.episode.clock_stopped, t.episode.phase(env.env_cfg)
+    return -float(sum(t.contact_before[f] and not t.contact[f]
+                      and (stopped or clock.in_early_stance(phase, f, env.env_cfg.swing_share)) for f in (0, 1)))
+
+
 @term("kflat")
 def sole_edge(t: Transition) -> float:
     """Minus the summed side-to-side tilt [rad] of the feet on the ground at the step's end: a foot
