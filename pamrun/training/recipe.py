@@ -10,7 +10,8 @@ agents whose episode reward reaches ``train.save_threshold`` are saved (MATLAB's
 SaveAgentCriteria); evaluations every ``train.eval_every_frames`` keep ``best_eval.pt`` and show
 their gait in TensorBoard (scalars, figure, a video every ``train.eval_video_every``); and
 ``checkpoints/last.pt`` holds what a later resume needs, written atomically. A reward
-curriculum (:mod:`pamrun.learning.curriculum`) is a transform of the replay buffer.
+curriculum (:mod:`pamrun.learning.curriculum`) is a transform of the replay buffer. A run from
+a trained agent (``train.init_from``) starts as :mod:`pamrun.training.init_from` says.
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ from pamrun.config import Config, ConfigError, to_object, without_hydra
 from pamrun.evaluation import board, figures
 from pamrun.evaluation.evaluator import TrainingEvaluator
 from pamrun.learning import checkpoints, networks
-from pamrun.learning.curriculum import FeatureReader, WalkCurriculum, computed_terms, reweighted_terms
+from pamrun.learning.curriculum import FeatureReader, WalkCurriculum, reweighted_terms
 from pamrun.runs import directory
 from pamrun.runs.directory import EVAL_FIELDS, CsvLog, EpisodeLog, RunFiles
 from pamrun.runs.files import console as make_console
@@ -44,10 +45,10 @@ from pamrun.runs.files import run_dir
 from pamrun.runs.machine import Terminated, stop_signals, usable_cores
 from pamrun.task import randomize
 from pamrun.task.observation import space_sizes
-from pamrun.task.reward import REWARD_KEYS
 from pamrun.task.spec import EnvSpec
 from pamrun.task.symmetry import action_map, mirror_batch, observation_map
 from pamrun.training.console import end_of_run, header_table, summary_table
+from pamrun.training.init_from import check_start, start_from
 from pamrun.training.progress import TrainingProgress
 
 NEW_RUN = {"frames": 0, "episodes": 0, "updates": 0, "wall_time_s": 0.0}  # a run's counters at its start
@@ -173,78 +174,6 @@ def check_config(config) -> None:
     directory.check_resume(config)
     if config.train.init_from and not config.resume:
         check_start(to_object(without_hydra(config)))
-
-
-def check_start(cfg: Config) -> None:
-    """``train.init_from`` is an agent pamrun can read, for this env's sizes and ``algo.hidden_sizes``;
-    the replay buffer this run would take from it is whole, as far as file sizes tell."""
-    path = cfg.train.init_from
-    try:
-        agent = checkpoints.load_agent(path, *space_sizes(cfg.muscle, cfg.env))
-        record, _ = _buffer_to_take(cfg, Path(path), torch.load(path, map_location="cpu", weights_only=True))
-        if record is not None:
-            checkpoints.check_buffer_sizes(Path(path).parent, record)
-    except checkpoints.CheckpointError as err:
-        raise ConfigError("train.init_from", str(err)) from None
-    if agent.hidden_sizes != list(cfg.algo.hidden_sizes):
-        raise ConfigError("train.init_from", f"{path}: its actor's hidden layers are {agent.hidden_sizes}, "
-                                             f"algo.hidden_sizes {list(cfg.algo.hidden_sizes)}")
-
-
-def start_from(cfg: Config, learner: networks.Learner, buffer, console) -> None:
-    """A new run's networks from the trained agent in ``train.init_from``, and the replay buffer
-    :func:`_buffer_to_take` says it takes, re-weighted to this run's rewards like any sample."""
-    path = Path(cfg.train.init_from)
-    state = torch.load(path, map_location="cpu", weights_only=True)
-    try:
-        took = learner.start_from(state)
-    except (RuntimeError, KeyError) as err:  # another algorithm's critics, or other critic sizes
-        first = (str(err).strip().splitlines() or [""])[0][:160]
-        raise SystemExit(f"pamrun: train.init_from: {path}: its networks do not fit algo.* ({first})") from None
-    record, why_not = _buffer_to_take(cfg, path, state)
-    if record is None:
-        took += f"; not its replay buffer, {why_not}" if why_not else ""
-    else:
-        try:
-            checkpoints.load_buffer(path.parent, record, buffer)
-        except checkpoints.CheckpointError as err:
-            raise SystemExit(f"pamrun: train.init_from: {err}") from None
-        took += f", and its {len(buffer)} replayed transitions"
-    console.print(f"Starting from {took} of {path}.", soft_wrap=True)
-
-
-def _buffer_to_take(cfg: Config, path: Path, state: dict) -> tuple[dict | None, str]:
-    """The ``"buffer"`` record of the resume state ``state`` (``train.init_from``, at ``path``)
-    whose transitions this run takes, or None and why not ("" for an agent file, which has none).
-    It takes them when the env's weights (``reward.*``) and transitions are the same, they carry
-    every term this run's stages weigh, they fit ``train.buffer_size``, and their folder lies
-    beside the file (a ``last.pt`` copied alone starts with an empty buffer)."""
-    record, config = state.get("buffer"), state.get("config") or {}
-    if record is None:
-        return None, ""
-    differ = EnvSpec.from_dict(config).transition_changes_to(EnvSpec.from_config(cfg))  # its env is not ours
-    computed = (set(record["terms"]) if "terms" in record
-                else _computed_before_terms_were_saved(path, config.get("reward", {})))
-    uncarried = [k for k in reweighted_terms(cfg) if k not in computed]
-    if differ:
-        return None, f"gathered in another env or summed with other weights ({', '.join(differ)})"
-    if uncarried:
-        return None, (f"whose transitions do not carry terms this run's stages weigh ({', '.join(uncarried)}: "
-                      f"its run neither weighed them nor had them in its train.*_weights)")
-    if record["length"] > cfg.train.buffer_size:
-        return None, f"of {record['length']} transitions (train.buffer_size {cfg.train.buffer_size})"
-    if not (path.parent / record["dir"]).is_dir():
-        return None, f"whose folder {record['dir']} is not beside it"
-    return record, ""
-
-
-def _computed_before_terms_were_saved(path: Path, source_weights: dict) -> set[str]:
-    """The reward terms a ``last.pt`` saved before it recorded them carries: those its run's
-    config computed, or outside its run directory those of weight not 0."""
-    run = path.parent.parent
-    if RunFiles(run).config.exists():
-        return computed_terms(directory.saved_config(run))
-    return {k for k in REWARD_KEYS if source_weights.get(k, 0.0) != 0.0}
 
 
 def main(dcfg) -> None:
