@@ -404,12 +404,17 @@ def test_kdouble_charges_a_foot_up_while_the_clock_stands_both():
     plain.close()
 
 
+def _transition(env, before: tuple[bool, bool] = (True, True), after: tuple[bool, bool] = (True, True)) -> Transition:
+    """A control step as the terms read it, from the env's present state, its feet on the ground
+    ``before`` and ``after`` it as given."""
+    _, forces, soles, torso, _ = env._sense()
+    return Transition(env, env.episode, torso, env.data.qpos.tolist(), np.zeros(10), np.zeros(10), soles, soles,
+                      list(before), list(after), forces)
+
+
 def _contacts(env, before: list[bool], after: list[bool]) -> float:
     """klift's feature for a step whose feet were on the ground ``before`` it and are ``after`` it."""
-    _, forces, soles, torso, _ = env._sense()
-    t = Transition(env, env.episode, torso, env.data.qpos.tolist(), np.zeros(10), np.zeros(10), soles, soles,
-                   before, after, forces)
-    return TERMS["klift"](t)
+    return TERMS["klift"](_transition(env, before, after))
 
 
 def test_klift_charges_a_foot_leaving_the_ground_early_in_its_stance():
@@ -539,10 +544,7 @@ def _posed(env, key: str, addresses, angles_rad) -> float:
     d = env.data
     d.qpos[addresses] = angles_rad
     mujoco.mj_forward(env.model, d)
-    _, forces, soles, torso, _ = env._sense()
-    t = Transition(env, env.episode, torso, d.qpos.tolist(), np.zeros(10), np.zeros(10), soles, soles,
-                   [True, True], [True, True], forces)
-    return TERMS[key](t)
+    return TERMS[key](_transition(env))
 
 
 def _knees_posed(env, knees_rad) -> float:
