@@ -466,6 +466,58 @@ def test_klift_charges_a_foot_leaving_the_ground_early_in_its_stance():
     plain.close()
 
 
+def test_ktouch_charges_a_foot_landing_off_its_clocks_touchdown():
+    """A foot that touches the ground costs 1 unless its clock is within 0.1 of the period of its
+    touchdown (psi = sigma), either side; staying down, staying up and lifting cost nothing; the left's
+    window is the right's half a period on; while the clock stands still every touchdown costs 1;
+    without a clock 0. In a real step, the robot dropped onto the floor late in the right foot's
+    stance, from 0.3 m up, pays -2 (both feet), weighted in info."""
+    env = PamWalkerEnv(env=CLOCK, reward={"ktouch": 2.0})
+    env.reset(seed=0)
+    sigma = env.env_cfg.swing_share
+    touch = lambda before, after: TERMS["ktouch"](_transition(env, before, after))  # noqa: E731
+    seen = set()
+    for phase0 in np.linspace(0.0, 1.0, 80, endpoint=False):
+        env.episode.phase0 = float(phase0)
+        phase = env.episode.phase(env.env_cfg)
+        off = [not sigma - 0.1 - 1e-9 <= since_lift_off(phase, f, sigma) <= sigma + 0.1 + 1e-9 for f in (0, 1)]
+        assert off[1] == (not sigma - 0.1 - 1e-9 <= since_lift_off(phase + 0.5, 0, sigma) <= sigma + 0.1 + 1e-9)
+        seen.add(tuple(off))
+        assert touch([False, True], [True, True]) == -float(off[0])
+        assert touch([True, False], [True, True]) == -float(off[1])
+        assert touch([False, False], [True, True]) == -float(sum(off))
+        for before, after in (([True, True], [True, True]), ([False, False], [False, False]),
+                              ([True, True], [False, False]), ([True, False], [False, False])):
+            assert touch(before, after) == 0.0
+    assert seen == {(True, False), (False, True), (True, True)}
+    dt_share = env.env_cfg.control_dt_s / env.env_cfg.gait_period_s
+    env.episode.phase0 = 0.72 - 4 * dt_share  # after 5 steps: the right foot about 0.7 into its own clock, the left 0.2
+    env.data.qpos[2] += 0.3
+    mujoco.mj_forward(env.model, env.data)
+    for _ in range(4):
+        *_, info = env.step(np.zeros(10))
+    assert max(info["foot_force_n"]) < 0.05 * env.weight_n and info["reward_unweighted"]["ktouch"] == 0.0
+    env.data.qpos[2] -= 0.3
+    env.data.qvel[:] = 0.0
+    mujoco.mj_forward(env.model, env.data)
+    *_, info = env.step(np.zeros(10))
+    phase = env.gait_phase()
+    assert 0.6 < since_lift_off(phase, 0, sigma) < 0.8 and 0.1 < since_lift_off(phase, 1, sigma) < sigma - 0.1
+    assert min(info["foot_force_n"]) > 0.05 * env.weight_n
+    assert info["reward_unweighted"]["ktouch"] == -2.0 and info["reward_terms"]["ktouch"] == pytest.approx(-4.0)
+    env.close()
+    stopped = PamWalkerEnv(env={**CLOCK, "gait_follows_speed": True, "target_speed_m_s": 0.0}, reward={"ktouch": 1.0})
+    stopped.reset(seed=0)
+    assert stopped.episode.clock_stopped
+    assert TERMS["ktouch"](_transition(stopped, [False, False], [True, True])) == -2.0
+    assert TERMS["ktouch"](_transition(stopped, [True, True], [True, True])) == 0.0
+    stopped.close()
+    plain = PamWalkerEnv(reward={"ktouch": 1.0})
+    plain.reset(seed=0)
+    assert TERMS["ktouch"](_transition(plain, [False, False], [True, True])) == 0.0
+    plain.close()
+
+
 def test_foot_path_moves_each_foot_back_in_stance_and_forward_in_swing():
     """The clock's foot path: a foot moves forward of the torso while swing_weights swings it and back
     while it stands, from +E/2 at touchdown to -E/2 at lift-off (E = 2 (1 - sigma) L*), without a jump,

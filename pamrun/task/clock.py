@@ -48,6 +48,19 @@ def in_early_stance(phase: float, foot: int, swing_share: float) -> bool:
     return swing_share <= since_lift_off(phase, foot, swing_share) < 0.5 * (1.0 + swing_share)
 
 
+# How far, as a share of the period, a touchdown may fall from its foot's clock touchdown (psi = swing_share) and
+# still be the clock's: the clock's double support at swing_share 0.4 (a foot landing within it lands between
+# the other's touchdown and its lift-off, give or take that much).
+TOUCHDOWN_WINDOW_SHARE = 0.1
+
+
+def near_touchdown(phase: float, foot: int, swing_share: float) -> bool:
+    """Whether a foot's clock is within :data:`TOUCHDOWN_WINDOW_SHARE` of the period of its touchdown
+    (psi = ``swing_share``, :func:`since_lift_off`), either side."""
+    miss = (since_lift_off(phase, foot, swing_share) - swing_share + 0.5) % 1.0 - 0.5
+    return abs(miss) <= TOUCHDOWN_WINDOW_SHARE
+
+
 def foot_path_m(phase: float, swing_share: float, step_length_m: float) -> tuple[float, float]:
     """Where the clock wants the right and the left foot [m], forward of the torso, at this phase:
     each foot's sole moves back at a constant rate through its stance, from +E/2 at touchdown to

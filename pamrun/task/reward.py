@@ -269,6 +269,21 @@ def early_lift(t: Transition) -> float:
                       and (stopped or clock.in_early_stance(phase, f, env.env_cfg.swing_share)) for f in (0, 1)))
 
 
+@term("ktouch")
+def off_clock_touchdown(t: Transition) -> float:
+    """Minus the number of feet that touch the ground in the step more than 0.1 of the period from
+    their clock's touchdown (pamrun.task.clock.near_touchdown; any foot while it stands still): the
+    second landing of a split stance, a foot that lifted and touched again before its swing or bounced
+    after its landing, and a swing cut short or dragged on (0 without a clock). Each touchdown is
+    charged once, as klift charges each lift."""
+    env = t.env
+    if not env.gait_clock:
+        return 0.0
+    stopped, phase = t.episode.clock_stopped, t.episode.phase(env.env_cfg)
+    return -float(sum(t.contact[f] and not t.contact_before[f]
+                      and (stopped or not clock.near_touchdown(phase, f, env.env_cfg.swing_share)) for f in (0, 1)))
+
+
 @term("kflat")
 def sole_edge(t: Transition) -> float:
     """Minus the summed side-to-side tilt [rad] of the feet on the ground at the step's end: a foot
