@@ -190,6 +190,35 @@ def test_flat_term_charges_the_feet_on_the_ground_for_standing_on_an_edge():
     env.close()
 
 
+def test_level_term_charges_a_swinging_foot_rolled_at_its_ankle():
+    """reward.klevel in real steps: on the ground it pays 0 (the tilt is kflat's); the robot held 0.3 m
+    up pays minus its soles' summed tilt at the step's end, weighted in info, and more with its right
+    ankle rolled 0.5 rad at the step's start than with its ankles at rest."""
+    import gymnasium as gym
+
+    env = gym.make("pamrun/PamWalker-v0", reward={"klevel": 2.0, "kflat": 1.0}).unwrapped
+    env.reset(seed=0)
+    zero = np.zeros(env.action_space.shape)
+    *_, info = env.step(zero)
+    assert info["reward_unweighted"]["klevel"] == 0.0
+    roll = env.model.jnt_qposadr[mujoco.mj_name2id(env.model, mujoco.mjtObj.mjOBJ_JOINT, "right_ankle_roll")]
+    paid = []
+    for rolled in (0.0, -0.5):
+        env.reset(seed=0)
+        env.data.qpos[2] += 0.3
+        env.data.qpos[roll] = rolled
+        env.data.qvel[:] = 0.0
+        mujoco.mj_forward(env.model, env.data)
+        *_, info = env.step(zero)
+        assert info["reward_unweighted"]["kflat"] == 0.0
+        tilt = sole_tilt_rad(env.episode.soles)
+        assert info["reward_unweighted"]["klevel"] == pytest.approx(-np.abs(tilt).sum())
+        assert info["reward_terms"]["klevel"] == 2.0 * info["reward_unweighted"]["klevel"]
+        paid.append(info["reward_unweighted"]["klevel"])
+    assert paid[0] == pytest.approx(0.0, abs=0.01) and paid[1] < -0.02
+    env.close()
+
+
 def test_sole_tilt_of_known_corners():
     """pamrun.task.measures.sole_tilt_rad on corners laid out by hand: a 0.1 m wide sole with its
     left edge 0.1 m x tan(0.2) higher tilts +0.2 rad, the mirror image -0.2, a flat one 0."""
@@ -207,6 +236,13 @@ def test_sole_tilt_of_known_corners():
     assert reward_mod.TERMS["kflat"](t) == pytest.approx(-0.2)
     t.contact = [True, True]
     assert reward_mod.TERMS["kflat"](t) == pytest.approx(-0.4)
+    assert reward_mod.TERMS["klevel"](t) == 0.0
+    t.contact = [False, True]
+    assert reward_mod.TERMS["kflat"](t) == pytest.approx(-0.2) and reward_mod.TERMS["klevel"](t) == pytest.approx(-0.2)
+    t.contact = [False, False]
+    assert reward_mod.TERMS["kflat"](t) == 0.0 and reward_mod.TERMS["klevel"](t) == pytest.approx(-0.4)
+    t.soles = np.stack([flat, flat])
+    assert reward_mod.TERMS["klevel"](t) == pytest.approx(0.0, abs=1e-12)
 
 
 def test_landing_term_charges_the_feet_that_touch_down_and_slip_those_already_down():

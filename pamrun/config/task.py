@@ -27,7 +27,7 @@ class RewardConfig:
           - kupright (roll^2 + pitch^2) + ktrack exp(-((Vx - v*) / sigma_track)^2)
           - kdouble w_both [a foot up] + kplace (1 - path miss) + kknee (1 - knee miss)
           + kpush (1 - push-off miss) + khip (1 - hip miss) - klift n_lifts
-          - ktouch n_touchdowns (the last twenty: 0 in the thesis)
+          - ktouch n_touchdowns - klevel swing tilt (the last twenty-one: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -83,6 +83,9 @@ class RewardConfig:
     # weight of the feet touching the ground more than 0.1 of the period from the gait clock's touchdown (any foot
     # while it stands still), one per touchdown: a split stance's second landing, a swing cut short; 0 without a clock
     ktouch: float = 0.0
+    # weight of the summed side-to-side tilt [rad] of the feet off the ground (kflat's, for the swinging feet):
+    # a swinging foot rolled onto its edge lands on it
+    klevel: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):

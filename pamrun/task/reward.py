@@ -292,6 +292,15 @@ def sole_edge(t: Transition) -> float:
     return -sum(abs(a) for a, down in zip(tilt, t.contact) if down)
 
 
+@term("klevel")
+def swing_sole_tilt(t: Transition) -> float:
+    """Minus the summed side-to-side tilt [rad] of the feet off the ground at the step's end: a
+    swinging foot rolled towards its ankle's stop, which lands on its sole's edge (kflat's tilt,
+    pamrun.task.measures.sole_tilt_rad, for the feet kflat leaves out)."""
+    tilt = sole_tilt_rad(t.soles).tolist()
+    return -sum(abs(a) for a, down in zip(tilt, t.contact) if not down)
+
+
 @term("kupright")
 def upright(t: Transition) -> float:
     """Minus the torso's squared tilt from upright, roll^2 + pitch^2 [rad^2]; its heading (yaw) is free."""
