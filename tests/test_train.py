@@ -27,8 +27,12 @@ def train_here(run_dir, *overrides: str) -> str:
 def test_train_in_process_is_reproducible(tmp_path):
     """``pamrun.training.recipe.train(cfg, out)`` runs in this process, with no Hydra: the same seed gives
     the same episodes.csv, every column but wall time, also with the walking recipe's start-pose
-    noise (whose first episode once started from an unseeded reset), and a run.json that says so."""
+    noise (whose first episode once started from an unseeded reset), and a run.json that says so.
+    TensorBoard's ``reward_terms/*`` has each weighted term's episode sum, adding up to its reward."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
     from pamrun.runs.directory import read_episodes
+    from pamrun.task.reward import REWARD_KEYS
     from pamrun.training.recipe import train
 
     cfg = to_object(compose_config(*TINY, "train.max_frames=400", "train.eval_every_frames=0"))
@@ -38,6 +42,14 @@ def test_train_in_process_is_reproducible(tmp_path):
         assert train(copy.deepcopy(cfg), tmp_path / name, ["seed=1"]) == "max_frames"
         runs.append([{k: v for k, v in r.items() if k != "wall_time_s"} for r in read_episodes(tmp_path / name)])
     assert len(runs[0]) > 2 and runs[0] == runs[1]
+    events = EventAccumulator(str(tmp_path / "a" / "tensorboard")).Reload()  # each weighted term, per episode
+    weighted = [k for k in REWARD_KEYS if getattr(cfg.reward, k)]
+    assert sorted(t for t in events.Tags()["scalars"] if t.startswith("reward_terms/")) == sorted(
+        f"reward_terms/{k}" for k in weighted)
+    for i, episode in enumerate(events.Scalars("episode/reward")):
+        terms = [events.Scalars(f"reward_terms/{k}")[i] for k in weighted]
+        assert {t.step for t in terms} == {episode.step}
+        assert sum(t.value for t in terms) == pytest.approx(episode.value, rel=1e-4)
     info = json.loads((tmp_path / "a" / "run.json").read_text())
     assert info["command"] == "pamrun train seed=1" and info["frames"] == 400
 

@@ -88,6 +88,11 @@ class Reweight(Transform):
     def set_weights(self, weights: dict[str, float]) -> None:
         self.delta = {k: float(weights[k]) - w for k, w in self.base.items()}
 
+    @property
+    def weights(self) -> dict[str, float]:
+        """The weights, by key, the samples are summed with now."""
+        return {k: w + self.delta[k] for k, w in self.base.items()}
+
     def forward(self, tensordict):
         changed = [k for k, d in self.delta.items() if d != 0.0]
         if changed:

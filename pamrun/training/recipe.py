@@ -37,7 +37,7 @@ from pamrun.config import Config, ConfigError, to_object, without_hydra
 from pamrun.evaluation import board, figures
 from pamrun.evaluation.evaluator import TrainingEvaluator
 from pamrun.learning import checkpoints, networks
-from pamrun.learning.curriculum import FeatureReader, WalkCurriculum, reweighted_terms
+from pamrun.learning.curriculum import FEATURES, FeatureReader, WalkCurriculum, computed_terms, reweighted_terms
 from pamrun.runs import directory
 from pamrun.runs.directory import EVAL_FIELDS, CsvLog, EpisodeLog, RunFiles
 from pamrun.runs.files import console as make_console
@@ -45,6 +45,7 @@ from pamrun.runs.files import run_dir
 from pamrun.runs.machine import Terminated, stop_signals, usable_cores
 from pamrun.task import randomize
 from pamrun.task.observation import space_sizes
+from pamrun.task.reward import REWARD_KEYS
 from pamrun.task.spec import EnvSpec
 from pamrun.task.symmetry import action_map, mirror_batch, observation_map
 from pamrun.training.console import end_of_run, header_table, summary_table
@@ -196,7 +197,7 @@ class Run:
         self.noise_std = self.set_noise()
         self.log = EpisodeLog(out, cfg.train.avg_window, SummaryWriter(str(self.files.tensorboard)),
                               counters["episodes"])
-        self.tracker = EpisodeTracker()
+        self.tracker = EpisodeTracker([k for k in REWARD_KEYS if k in computed_terms(cfg)])
         self.evals = Evaluations(cfg, out, self.log.writer, console) if cfg.train.eval_every_frames else None
         self.info = directory.start_run_json(out, cfg, resuming, self.frames, overrides)
         if curriculum.walking:
@@ -229,6 +230,10 @@ class Run:
         q0s = self.learner.q0(torch.stack([e["obs0"] for e in finished])) if finished else []
         for episode, q0 in zip(finished, q0s):
             row = self.log.add(episode, q0, self.frames, self.clock.seconds())
+            weights = self.curriculum.transform.weights  # the episode's terms as the learner weighs them now
+            for key, total in episode["terms"].items():
+                if weights[key]:
+                    self.log.writer.add_scalar(f"reward_terms/{key}", weights[key] * total, self.log.episodes)
             if episode["reward"] >= self.cfg.train.save_threshold and not episode["physics_error"]:
                 self.saved = checkpoints.save_agent(self.files.checkpoints, self.learner.policy_state(), row,
                                                     self.cfg, self.saved, self.cfg.train.keep_saved)
@@ -396,15 +401,17 @@ class Clock:
 
 
 class EpisodeTracker:
-    """Sums each collector trajectory's reward and length until it is done, with its first
-    observation (for Q0), its distance and whether its physics blew up.
+    """Sums each collector trajectory's reward, length and unweighted reward terms (those named
+    ``terms``) until it is done, with its first observation (for Q0), its distance and whether its
+    physics blew up.
 
     Not TorchRL's ``RewardSum``/``StepCounter``: RewardSum sums in the reward's float32 (off by
     up to ~1e-3 over a 400-step return of ~400, which episodes.csv's 5 decimals show), and the
     first observation and physics flag need this per-trajectory state anyway."""
 
-    def __init__(self):
+    def __init__(self, terms: list[str]):
         self.running: dict[int, dict] = {}
+        self.terms = terms
 
     def add(self, batch) -> list[dict]:
         """The episodes this (flat) batch finishes."""
@@ -414,10 +421,13 @@ class EpisodeTracker:
         done = batch["next", "done"].reshape(-1).tolist()
         distance = batch["next", "distance"].reshape(-1).tolist()
         error = batch["next", "physics_error"].reshape(-1).tolist()
+        features = {k: batch["next", FEATURES, k].reshape(-1).tolist() for k in self.terms}
         for i in range(len(traj)):
             ep = self.running.setdefault(traj[i], {"reward": 0.0, "length": 0, "obs0": batch["observation"][i],
-                                                   "physics_error": False})
+                                                   "physics_error": False, "terms": dict.fromkeys(self.terms, 0.0)})
             ep["reward"] += reward[i]
+            for k, values in features.items():
+                ep["terms"][k] += values[i]
             ep["length"] += 1
             ep["physics_error"] |= bool(error[i])
             if done[i]:
