@@ -412,9 +412,9 @@ def _transition(env, before: tuple[bool, bool] = (True, True), after: tuple[bool
                       list(before), list(after), forces)
 
 
-def _contacts(env, before: list[bool], after: list[bool]) -> float:
-    """klift's feature for a step whose feet were on the ground ``before`` it and are ``after`` it."""
-    return TERMS["klift"](_transition(env, before, after))
+def _contacts(env, before: list[bool], after: list[bool], key: str = "klift") -> float:
+    """``key``'s feature for a step whose feet were on the ground ``before`` it and are ``after`` it."""
+    return TERMS[key](_transition(env, before, after))
 
 
 def test_klift_charges_a_foot_leaving_the_ground_early_in_its_stance():
@@ -475,7 +475,6 @@ def test_ktouch_charges_a_foot_landing_off_its_clocks_touchdown():
     env = PamWalkerEnv(env=CLOCK, reward={"ktouch": 2.0})
     env.reset(seed=0)
     sigma = env.env_cfg.swing_share
-    touch = lambda before, after: TERMS["ktouch"](_transition(env, before, after))  # noqa: E731
     seen = set()
     for phase0 in np.linspace(0.0, 1.0, 80, endpoint=False):
         env.episode.phase0 = float(phase0)
@@ -483,12 +482,12 @@ def test_ktouch_charges_a_foot_landing_off_its_clocks_touchdown():
         off = [not sigma - 0.1 - 1e-9 <= since_lift_off(phase, f, sigma) <= sigma + 0.1 + 1e-9 for f in (0, 1)]
         assert off[1] == (not sigma - 0.1 - 1e-9 <= since_lift_off(phase + 0.5, 0, sigma) <= sigma + 0.1 + 1e-9)
         seen.add(tuple(off))
-        assert touch([False, True], [True, True]) == -float(off[0])
-        assert touch([True, False], [True, True]) == -float(off[1])
-        assert touch([False, False], [True, True]) == -float(sum(off))
+        assert _contacts(env, [False, True], [True, True], "ktouch") == -float(off[0])
+        assert _contacts(env, [True, False], [True, True], "ktouch") == -float(off[1])
+        assert _contacts(env, [False, False], [True, True], "ktouch") == -float(sum(off))
         for before, after in (([True, True], [True, True]), ([False, False], [False, False]),
                               ([True, True], [False, False]), ([True, False], [False, False])):
-            assert touch(before, after) == 0.0
+            assert _contacts(env, before, after, "ktouch") == 0.0
     assert seen == {(True, False), (False, True), (True, True)}
     dt_share = env.env_cfg.control_dt_s / env.env_cfg.gait_period_s
     env.episode.phase0 = 0.72 - 4 * dt_share  # after 5 steps: the right foot about 0.7 into its own clock, the left 0.2
@@ -509,12 +508,12 @@ def test_ktouch_charges_a_foot_landing_off_its_clocks_touchdown():
     stopped = PamWalkerEnv(env={**CLOCK, "gait_follows_speed": True, "target_speed_m_s": 0.0}, reward={"ktouch": 1.0})
     stopped.reset(seed=0)
     assert stopped.episode.clock_stopped
-    assert TERMS["ktouch"](_transition(stopped, [False, False], [True, True])) == -2.0
-    assert TERMS["ktouch"](_transition(stopped, [True, True], [True, True])) == 0.0
+    assert _contacts(stopped, [False, False], [True, True], "ktouch") == -2.0
+    assert _contacts(stopped, [True, True], [True, True], "ktouch") == 0.0
     stopped.close()
     plain = PamWalkerEnv(reward={"ktouch": 1.0})
     plain.reset(seed=0)
-    assert TERMS["ktouch"](_transition(plain, [False, False], [True, True])) == 0.0
+    assert _contacts(plain, [False, False], [True, True], "ktouch") == 0.0
     plain.close()
 
 

@@ -261,12 +261,7 @@ def early_lift(t: Transition) -> float:
     stance (pamrun.task.clock.in_early_stance; any foot while it stands still): a stance split by a
     bounce after its landing (0 without a clock). Each lift is charged once, as kland charges each
     landing; a foot lifting late in its stance, before its swing, is kdouble's."""
-    env = t.env
-    if not env.gait_clock:
-        return 0.0
-    stopped, phase = t.episode.clock_stopped, t.episode.phase(env.env_cfg)
-    return -float(sum(t.contact_before[f] and not t.contact[f]
-                      and (stopped or clock.in_early_stance(phase, f, env.env_cfg.swing_share)) for f in (0, 1)))
+    return _charged_contact_changes(t, landing=False, charged=clock.in_early_stance)
 
 
 @term("ktouch")
@@ -276,12 +271,18 @@ def off_clock_touchdown(t: Transition) -> float:
     second landing of a split stance, a foot that lifted and touched again before its swing or bounced
     after its landing, and a swing cut short or dragged on (0 without a clock). Each touchdown is
     charged once, as klift charges each lift."""
+    return _charged_contact_changes(t, landing=True, charged=lambda *at: not clock.near_touchdown(*at))
+
+
+def _charged_contact_changes(t: Transition, landing: bool, charged) -> float:
+    """Minus the number of feet that land in the step (``landing``; else lift) where ``charged(phase, foot,
+    swing_share)`` holds, or at all while the clock stands still; 0 without a clock: klift's and ktouch's count."""
     env = t.env
     if not env.gait_clock:
         return 0.0
     stopped, phase = t.episode.clock_stopped, t.episode.phase(env.env_cfg)
-    return -float(sum(t.contact[f] and not t.contact_before[f]
-                      and (stopped or not clock.near_touchdown(phase, f, env.env_cfg.swing_share)) for f in (0, 1)))
+    changed = [after != before and after == landing for before, after in zip(t.contact_before, t.contact)]
+    return -float(sum(c and (stopped or charged(phase, f, env.env_cfg.swing_share)) for f, c in enumerate(changed)))
 
 
 @term("kflat")
