@@ -1,7 +1,7 @@
 """Environment steps per second vs bare MuJoCo stepping of the same model.
 
-    python benchmarks/env_step.py [--seconds 5] [--repeats 5] [--presets sized thesis] [--models] [--clock] [--terrain]
-                                  [--lean-info] [--timer cpu]
+    python benchmarks/env_step.py [--seconds 5] [--repeats 5] [--presets sized thesis] [--models] [--clock] [--terms]
+                                  [--terrain] [--lean-info] [--timer cpu]
 
 Prints, per muscle preset, control steps/s of PamWalker-v0 with random actions and, in the same run, the
 rate of bare ``mj_step`` on the same model with the same number of physics substeps
@@ -12,7 +12,9 @@ timing) and ``numpy`` (the reference); the thesis coupling always uses numpy. ``
 measures the sized preset instead with each pneumatic model beyond the thesis' (``MODELS``:
 the flow-limited valve, hysteresis, the Tondu-Lopez law, the toe) against today's, both
 kernels, in the same run; ``--clock`` the sized preset with the gait clock and every kgait
-demand on (``CLOCK``) against today's; ``--terrain`` the sized preset (numba) on each of the
+demand on (``CLOCK``) against today's; ``--terms`` the sized preset (numba) with that clock and
+every reward term computed, as training computes them (``ALL_TERMS``), against the clock with only
+its weighted terms; ``--terrain`` the sized preset (numba) on each of the
 robustness suite's terrains (``TERRAINS``, begun 0.3 m ahead, so that the robot, falling under
 random actions, lands on them) against the flat floor.
 
@@ -39,6 +41,7 @@ import numpy as np
 from pamrun.config import MuscleConfig, preset
 from pamrun.config.experiments import terrain_perturbations
 from pamrun.task.env import PamWalkerEnv
+from pamrun.task.reward import REWARD_KEYS
 
 CLOCKS = {"wall": time.perf_counter, "cpu": time.thread_time}
 clock = CLOCKS["wall"]  # main() sets --timer's
@@ -92,6 +95,9 @@ MODELS = {
 # the env's reward path the clock adds: --clock measures it against today's in the same run
 CLOCK = {"env": {"gait_period_s": 0.8, "swing_clearance_m": 0.05, "swing_knee_deg": 20.0, "stance_knee_deg": 30.0}}
 
+# Every reward term computed at any weight (training's env: pamrun.training.recipe.make_env), with the clock
+ALL_TERMS = {**CLOCK, "features": REWARD_KEYS}
+
 # The robustness suite's terrains (eval.perturbations), begun as near the start as the env allows
 TERRAINS = {name: {"env": {**p.values["env"], "terrain_x_m": 0.3}} for name, p in terrain_perturbations().items()}
 
@@ -106,7 +112,7 @@ def spread(values: list[float]) -> tuple[float, float, float]:
 
 
 def measure(name: str, kernel: str, seconds: float, repeats: int, model: str = "", lean_info: bool = False) -> dict:
-    kwargs = merged({"muscle": {**preset("muscle", name), "kernel": kernel}}, {**MODELS, "clock": CLOCK, **TERRAINS}.get(model, {}))
+    kwargs = merged({"muscle": {**preset("muscle", name), "kernel": kernel}}, {**MODELS, "clock": CLOCK, "all_terms": ALL_TERMS, **TERRAINS}.get(model, {}))
     env = PamWalkerEnv(**kwargs, lean_info=lean_info)
     used = "numba" if env.drive.compiled else "numpy"  # the thesis coupling is numpy only
     ready_s = warm_up(env)
@@ -150,6 +156,8 @@ def main() -> None:
     parser.add_argument("--presets", nargs="+", default=["sized", "thesis"])
     parser.add_argument("--models", action="store_true", help="the sized preset with each pneumatic model")
     parser.add_argument("--clock", action="store_true", help="the sized preset with the gait clock and its demands")
+    parser.add_argument("--terms", action="store_true",
+                        help="the sized preset (numba) with the clock, every reward term against the weighted ones")
     parser.add_argument("--terrain", action="store_true", help="the sized preset (numba) on each terrain")
     parser.add_argument("--lean-info", action="store_true",
                         help="the env as training builds it: info holds only what training reads (lean_info=True)")
@@ -163,9 +171,11 @@ def main() -> None:
     for model in ("", *MODELS) if args.models else ("", "clock") if args.clock else ():
         for kernel in ("numba", "numpy"):
             results.append(measure("sized", kernel, args.seconds, args.repeats, model, args.lean_info))
+    for model in ("clock", "all_terms") if args.terms else ():
+        results.append(measure("sized", "numba", args.seconds, args.repeats, model, args.lean_info))
     for model in ("", *TERRAINS) if args.terrain else ():
         results.append(measure("sized", "numba", args.seconds, args.repeats, model, args.lean_info))
-    for name in () if args.models or args.clock or args.terrain else args.presets:
+    for name in () if args.models or args.clock or args.terms or args.terrain else args.presets:
         coupling = preset("muscle", name).get("coupling", MuscleConfig().coupling)
         for kernel in (("numba", "numpy") if coupling == "kinematic" else ("numpy",)):
             results.append(measure(name, kernel, args.seconds, args.repeats, lean_info=args.lean_info))

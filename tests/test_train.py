@@ -367,10 +367,18 @@ def test_resume_takes_a_new_budget_and_names_what_it_ignores(tmp_path):
 def test_a_run_started_from_a_trained_agent_begins_with_its_networks(tmp_path):
     """``train.init_from``: a run's last.pt gives the new run its actor, critics, targets and replay
     buffer (not the buffer where reward.*, env.*, body.* or muscle.* differs, or where its transitions lack a term this run's
-    stages weigh, one its run never computed, or where the last.pt was copied without its buffer
-    folder); an agent file its actor alone (the critics new,
+    stages weigh that its pamrun did not compute, or where the last.pt was copied without its buffer
+    folder: training computes every term, so a term the source never weighed comes along); an
+    agent file its actor alone (the critics new,
     the buffer empty); the agent is evaluated at frame 0; the counters start at 0. With no updates
     the networks end as they began, so last.pt shows what was taken."""
+    from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+
+    from pamrun.learning import checkpoints
+    from pamrun.learning.curriculum import FEATURES
+    from pamrun.runs.directory import saved_config
+    from pamrun.task.reward import REWARD_KEYS
+
     source = tmp_path / "source"
     assert train_here(source, *TINY, "train.max_frames=400", "train.eval_every_frames=0") == "max_frames"
     a = torch.load(source / "checkpoints" / "last.pt", weights_only=True)
@@ -407,16 +415,35 @@ def test_a_run_started_from_a_trained_agent_begins_with_its_networks(tmp_path):
                       f"train.init_from={source / 'checkpoints' / 'last.pt'}") == "max_frames"
     assert torch.load(speed / "checkpoints" / "last.pt", weights_only=True)["buffer"]["length"] == 400
 
-    f_dir = tmp_path / "uncomputed"  # the source's env never computed kslip (weight 0, no stage): its buffer holds 0s
-    assert train_here(f_dir, *TINY, *still, "+train.walk_weights.kslip=1",
+    assert a["buffer"]["terms"] == sorted(REWARD_KEYS)  # training computes every term, at any weight
+    stored = TensorDictReplayBuffer(storage=LazyTensorStorage(saved_config(source).train.buffer_size))
+    checkpoints.load_buffer(source / "checkpoints", a["buffer"], stored)
+    assert stored[:]["next", FEATURES, "kslip"].abs().sum() > 0  # kslip's, at weight 0 in the source
+    every = tmp_path / "every"  # so a run that weighs kslip, which the source never weighed, takes its buffer
+    assert train_here(every, *TINY, *still, "+train.walk_weights.kslip=1",
                       f"train.init_from={source / 'checkpoints' / 'last.pt'}") == "max_frames"
+    assert torch.load(every / "checkpoints" / "last.pt", weights_only=True)["buffer"]["length"] == 800
+
+    older = tmp_path / "older"  # the source's last.pt as a pamrun that did not compute kslip would have saved it
+    shutil.copytree(source / "checkpoints", older)
+    state = torch.load(older / "last.pt", weights_only=True)
+    state["buffer"]["terms"].remove("kslip")
+    torch.save(state, older / "last.pt")
+    f_dir = tmp_path / "uncomputed"  # weighing kslip, it leaves that buffer (0 for kslip) behind
+    assert train_here(f_dir, *TINY, *still, "+train.walk_weights.kslip=1",
+                      f"train.init_from={older / 'last.pt'}") == "max_frames"
     assert torch.load(f_dir / "checkpoints" / "last.pt", weights_only=True)["buffer"]["length"] == 400
+    via = tmp_path / "via"  # weighing no new term it takes it, and its own last.pt still says kslip is not carried
+    assert train_here(via, *TINY, *still, "train.eval_every_frames=0", f"train.init_from={older / 'last.pt'}") == "max_frames"
+    v = torch.load(via / "checkpoints" / "last.pt", weights_only=True)["buffer"]
+    assert v["length"] == 800 and "kslip" not in v["terms"]
+    assert train_here(tmp_path / "from_via", *TINY, *still, "+train.walk_weights.kslip=1",
+                      f"train.init_from={via / 'checkpoints' / 'last.pt'}") == "max_frames"
+    assert torch.load(tmp_path / "from_via" / "checkpoints" / "last.pt", weights_only=True)["buffer"]["length"] == 400
     g_dir = tmp_path / "computed"  # f_dir's env computed kslip (its walking stage's): its buffer comes along
     assert train_here(g_dir, *TINY, *still, "+train.walk_weights.kslip=2",
                       f"train.init_from={f_dir / 'checkpoints' / 'last.pt'}") == "max_frames"
     assert torch.load(g_dir / "checkpoints" / "last.pt", weights_only=True)["buffer"]["length"] == 800
-    assert "kslip" not in a["buffer"]["terms"]  # last.pt records the terms its transitions carry
-    assert "kslip" in torch.load(f_dir / "checkpoints" / "last.pt", weights_only=True)["buffer"]["terms"]
     moved = tmp_path / "moved"  # a last.pt and its buffer outside their run directory: the record still says
     shutil.copytree(f_dir / "checkpoints", moved)
     assert train_here(tmp_path / "from_moved", *TINY, *still, "+train.walk_weights.kslip=2",

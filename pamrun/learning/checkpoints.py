@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from pamrun.config import upgrade_saved_config
-from pamrun.learning.curriculum import FEATURES, computed_terms
+from pamrun.learning.curriculum import FEATURES
 from pamrun.runs.directory import (
     AGENT_GLOB,
     BEST_EVAL,
@@ -245,14 +245,14 @@ def drop_agents_after(ckpt_dir: Path, episodes: int) -> None:
             agent.unlink()
 
 
-def save_last(ckpt_dir: Path, cfg, learner, buffer, counters: dict) -> None:
+def save_last(ckpt_dir: Path, cfg, learner, buffer, counters: dict, terms) -> None:
     """Everything a resume needs, and the final actor as an agent (``pamrun eval`` reads it).
 
     The replay buffer goes first, into its own ``buffer-<frames>/`` folder; then ``last.pt``,
     atomically, naming that folder with the size and CRC-32 of each of its files and the
     buffer's length; then older buffer folders go. A crash at any moment leaves a
-    ``last.pt`` whose buffer is complete on disk, and the reward terms its transitions carry (the
-    others are stored as 0). Plain data only: loadable with ``weights_only=True``."""
+    ``last.pt`` whose buffer is complete on disk, and ``terms``, the reward terms its transitions
+    carry (the others are stored as 0). Plain data only: loadable with ``weights_only=True``."""
 
 
     needed = _checkpoint_bytes(learner, buffer)
@@ -271,7 +271,7 @@ def save_last(ckpt_dir: Path, cfg, learner, buffer, counters: dict) -> None:
                          {"frames": counters["frames"], "episode": counters["episodes"]})
     atomic_save({**actor, **learner.state_dict(), "counters": dict(counters), "rng": rng_states(),
                  "buffer": {"dir": name, "length": len(buffer), "files": file_fingerprints(ckpt_dir / name),
-                            "terms": sorted(computed_terms(cfg))}},  # the reward terms its transitions carry
+                            "terms": sorted(terms)}},
                 ckpt_dir / LAST)
     for old in ckpt_dir.glob("buffer*"):
         if old.name != name:
@@ -308,8 +308,9 @@ def saved_counters(ckpt_dir: Path) -> dict | None:
     return dict(torch.load(path, weights_only=True)["counters"]) if path.exists() else None
 
 
-def load_last(ckpt_dir: Path, learner, buffer) -> dict:
-    """Restore the learner, the replay buffer and the RNG states; return the counters.
+def load_last(ckpt_dir: Path, learner, buffer) -> tuple[dict, set[str] | None]:
+    """Restore the learner, the replay buffer and the RNG states; return the counters and the
+    reward terms the buffer's transitions carry (None: a ``last.pt`` that did not record them).
 
     Every piece is checked first: ``last.pt`` must load, and each buffer file must have the
     size and checksum the checkpoint recorded, so a resume never trains on a truncated or
@@ -329,7 +330,8 @@ def load_last(ckpt_dir: Path, learner, buffer) -> dict:
         raise CheckpointError(last, f"unreadable resume state ({type(err).__name__}: {first})") from None
     set_rng_states(state["rng"])
     load_buffer(ckpt_dir, state.get("buffer"), buffer)
-    return counters
+    terms = (state.get("buffer") or {}).get("terms")
+    return counters, None if terms is None else set(terms)
 
 
 def check_buffer_sizes(ckpt_dir: Path, record: dict) -> Path:

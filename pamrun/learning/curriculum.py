@@ -4,8 +4,9 @@ The env returns its reward's unweighted terms by weight key (``info["reward_unwe
 :mod:`pamrun.task.reward`), and training stores them in its replay buffer under
 ``("next", "reward_unweighted", <key>)`` (:class:`FeatureReader`). A :class:`Reweight` transform on
 the buffer gives every sample, old or new, the reward of other weights:
-r' = r + sum_k (w'_k - w_k) f_k, matched by key. The env computes only the terms it weighs and
-those a curriculum may turn on (:func:`reweighted_terms`, its ``features``). Transitions whose
+r' = r + sum_k (w'_k - w_k) f_k, matched by key. Training's env computes every term, at any weight
+(its ``features``: :data:`COMPUTED`), so that a later run from the buffer
+(``train.init_from``) may weigh any term its pamrun knew. Transitions whose
 physics blew up have all features 0, so they keep their reward (0). The env, its logs and
 ``pamrun eval`` keep the config's weights.
 
@@ -37,19 +38,21 @@ from pamrun.task.criteria import stands_learned
 from pamrun.task.reward import REWARD_KEYS
 
 FEATURES = "reward_unweighted"  # the replay buffer's key (under "next") of the unweighted terms, by weight key
+COMPUTED = REWARD_KEYS  # the terms training's env computes, at any weight (its features), and its buffer carries
 
 
 def reweighted_terms(cfg: Config) -> tuple[str, ...]:
     """The terms the walking and gait stages may weigh (``train.walk_weights``, ``train.walk_kvx``,
-    ``train.gait_weights``): the env computes them even at weight 0 (its ``features``)."""
+    ``train.gait_weights``): a replay buffer this run takes must carry them."""
     t = cfg.train
     return tuple(k for k in REWARD_KEYS
                  if k in t.walk_weights or k in t.gait_weights or (k == "kvx" and t.walk_kvx is not None))
 
 
-def computed_terms(cfg: Config) -> set[str]:
-    """The terms a run's env computes: those of weight not 0 and those its stages may weigh. Its
-    replay buffer holds 0 for every other term."""
+def computed_before_all_terms(cfg: Config) -> set[str]:
+    """The terms the env of a run ``cfg`` computed when training computed only those of weight
+    not 0 and those its stages may weigh (pamrun before every term was computed); a buffer it
+    filled holds 0 for the others."""
     return {k for k in REWARD_KEYS if getattr(cfg.reward, k) != 0.0} | set(reweighted_terms(cfg))
 
 
@@ -84,6 +87,7 @@ class Reweight(Transform):
         super().__init__()
         self.base = {k: float(base[k]) for k in REWARD_KEYS}
         self.delta = dict.fromkeys(REWARD_KEYS, 0.0)
+        self.carried = set(COMPUTED)  # the terms every sample carries (fewer in a buffer an older run filled)
 
     def set_weights(self, weights: dict[str, float]) -> None:
         self.delta = {k: float(weights[k]) - w for k, w in self.base.items()}

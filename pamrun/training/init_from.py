@@ -10,7 +10,7 @@ import torch
 
 from pamrun.config import Config, ConfigError
 from pamrun.learning import checkpoints, networks
-from pamrun.learning.curriculum import computed_terms, reweighted_terms
+from pamrun.learning.curriculum import computed_before_all_terms, reweighted_terms
 from pamrun.runs import directory
 from pamrun.runs.directory import RunFiles
 from pamrun.task.observation import space_sizes
@@ -34,9 +34,10 @@ def check_start(cfg: Config) -> None:
                                              f"algo.hidden_sizes {list(cfg.algo.hidden_sizes)}")
 
 
-def start_from(cfg: Config, learner: networks.Learner, buffer, console) -> None:
+def start_from(cfg: Config, learner: networks.Learner, buffer, console) -> set[str] | None:
     """A new run's networks from the trained agent in ``train.init_from``, and the replay buffer
-    :func:`_buffer_to_take` says it takes, re-weighted to this run's rewards like any sample."""
+    :func:`_buffer_to_take` says it takes, re-weighted to this run's rewards like any sample;
+    returns the reward terms that buffer's transitions carry (None: no buffer taken)."""
     path = Path(cfg.train.init_from)
     state = torch.load(path, map_location="cpu", weights_only=True)
     try:
@@ -47,13 +48,16 @@ def start_from(cfg: Config, learner: networks.Learner, buffer, console) -> None:
     record, why_not = _buffer_to_take(cfg, path, state)
     if record is None:
         took += f"; not its replay buffer, {why_not}" if why_not else ""
+        terms = None
     else:
+        terms = carried_terms(path, record, state.get("config") or {})
         try:
             checkpoints.load_buffer(path.parent, record, buffer)
         except checkpoints.CheckpointError as err:
             raise SystemExit(f"pamrun: train.init_from: {err}") from None
         took += f", and its {len(buffer)} replayed transitions"
     console.print(f"Starting from {took} of {path}.", soft_wrap=True)
+    return terms
 
 
 def _buffer_to_take(cfg: Config, path: Path, state: dict) -> tuple[dict | None, str]:
@@ -66,14 +70,13 @@ def _buffer_to_take(cfg: Config, path: Path, state: dict) -> tuple[dict | None, 
     if record is None:
         return None, ""
     differ = EnvSpec.from_dict(config).transition_changes_to(EnvSpec.from_config(cfg))  # its env is not ours
-    computed = (set(record["terms"]) if "terms" in record
-                else _computed_before_terms_were_saved(path, config.get("reward", {})))
+    computed = carried_terms(path, record, config)
     uncarried = [k for k in reweighted_terms(cfg) if k not in computed]
     if differ:
         return None, f"gathered in another env or summed with other weights ({', '.join(differ)})"
     if uncarried:
         return None, (f"whose transitions do not carry terms this run's stages weigh ({', '.join(uncarried)}: "
-                      f"its run neither weighed them nor had them in its train.*_weights)")
+                      f"its run, by an earlier pamrun, did not compute them)")
     if record["length"] > cfg.train.buffer_size:
         return None, f"of {record['length']} transitions (train.buffer_size {cfg.train.buffer_size})"
     if not (path.parent / record["dir"]).is_dir():
@@ -81,10 +84,13 @@ def _buffer_to_take(cfg: Config, path: Path, state: dict) -> tuple[dict | None, 
     return record, ""
 
 
-def _computed_before_terms_were_saved(path: Path, source_weights: dict) -> set[str]:
-    """The reward terms a ``last.pt`` saved before it recorded them carries: those its run's
-    config computed, or outside its run directory those of weight not 0."""
+def carried_terms(path: Path, record: dict, config: dict) -> set[str]:
+    """The reward terms the transitions of the buffer a ``last.pt`` at ``path`` names carry: as
+    its ``record`` says, or for one saved before it recorded them, those its run's config computed
+    (outside its run directory, those of weight not 0 in its ``config``)."""
+    if "terms" in record:
+        return set(record["terms"])
     run = path.parent.parent
     if RunFiles(run).config.exists():
-        return computed_terms(directory.saved_config(run))
-    return {k for k in REWARD_KEYS if source_weights.get(k, 0.0) != 0.0}
+        return computed_before_all_terms(directory.saved_config(run))
+    return {k for k in REWARD_KEYS if (config.get("reward") or {}).get(k, 0.0) != 0.0}

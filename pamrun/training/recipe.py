@@ -37,7 +37,7 @@ from pamrun.config import Config, ConfigError, to_object, without_hydra
 from pamrun.evaluation import board, figures
 from pamrun.evaluation.evaluator import TrainingEvaluator
 from pamrun.learning import checkpoints, networks
-from pamrun.learning.curriculum import FEATURES, FeatureReader, WalkCurriculum, computed_terms, reweighted_terms
+from pamrun.learning.curriculum import COMPUTED, FEATURES, FeatureReader, WalkCurriculum, computed_before_all_terms
 from pamrun.runs import directory
 from pamrun.runs.directory import EVAL_FIELDS, CsvLog, EpisodeLog, RunFiles
 from pamrun.runs.files import console as make_console
@@ -45,7 +45,6 @@ from pamrun.runs.files import run_dir
 from pamrun.runs.machine import Terminated, stop_signals, usable_cores
 from pamrun.task import randomize
 from pamrun.task.observation import space_sizes
-from pamrun.task.reward import REWARD_KEYS
 from pamrun.task.spec import EnvSpec
 from pamrun.task.symmetry import action_map, mirror_batch, observation_map
 from pamrun.training.console import end_of_run, header_table, summary_table
@@ -62,8 +61,9 @@ def make_env(cfg: Config, seed: int | None = None):
     reset (else its start noise comes from the OS)."""
 
 
-    # the terms the curriculum may re-weight, computed at any weight; info only as far as training reads it
-    spec, options = EnvSpec.from_config(cfg), {"features": reweighted_terms(cfg), "lean_info": True}
+    # every reward term at any weight, for the curriculum and any later run from this buffer; info
+    # only as far as training reads it
+    spec, options = EnvSpec.from_config(cfg), {"features": COMPUTED, "lean_info": True}
     env = GymWrapper(randomize.RandomizedWalker.from_config(spec, cfg, options) if cfg.train.randomize
                      else gym.make("pamrun/PamWalker-v0", **spec.sections(), **options))
     info = {"distance": Unbounded((), dtype=torch.float64), "physics_error": Unbounded((), dtype=torch.bool)}
@@ -130,9 +130,11 @@ def train(cfg: Config, out: Path, overrides: list[str] = ()) -> str:
     torch.set_num_threads(cfg.train.threads or max(1, usable_cores() - cfg.train.workers + 1))
     learner, curriculum = make_learner(cfg), WalkCurriculum(cfg)
     buffer = make_buffer(cfg, curriculum)
-    counters = resume(out, learner, buffer) if resuming else dict(NEW_RUN)
+    counters, carried = resume(out, learner, buffer) if resuming else (dict(NEW_RUN), None)
     if cfg.train.init_from and not resuming:
-        start_from(cfg, learner, buffer, console)
+        carried = start_from(cfg, learner, buffer, console)
+    if carried is not None:  # a buffer an older run filled: only these terms are re-weighted truly
+        curriculum.transform.carried = carried
     if counters["frames"] >= cfg.train.max_frames or counters["episodes"] >= cfg.train.max_episodes:
         console.print(f"{out} already finished its budget ({counters['frames']} frames, {counters['episodes']} "
                       f"episodes): nothing to do. To train on, give it a larger one: pamrun train "
@@ -197,7 +199,7 @@ class Run:
         self.noise_std = self.set_noise()
         self.log = EpisodeLog(out, cfg.train.avg_window, SummaryWriter(str(self.files.tensorboard)),
                               counters["episodes"])
-        self.tracker = EpisodeTracker([k for k in REWARD_KEYS if k in computed_terms(cfg)])
+        self.tracker = EpisodeTracker(list(COMPUTED))
         self.evals = Evaluations(cfg, out, self.log.writer, console) if cfg.train.eval_every_frames else None
         self.info = directory.start_run_json(out, cfg, resuming, self.frames, overrides)
         if curriculum.walking:
@@ -267,7 +269,8 @@ class Run:
         self.progress.update(self.counters(), f"avg {self.log.average():.2f}  best {self.log.best:.2f}")
         if self.frames % t.checkpoint_every_frames < n:
             self.log.sync()
-            checkpoints.save_last(self.files.checkpoints, self.cfg, self.learner, self.buffer, self.counters())
+            checkpoints.save_last(self.files.checkpoints, self.cfg, self.learner, self.buffer, self.counters(),
+                                  self.curriculum.transform.carried)
         if self.evals and self.frames % t.eval_every_frames < n and self.evaluate()["walk_test"] and t.stop_on_walk:
             return "walked"
         return stop_reason(self.cfg, self.log, self.clock.seconds())
@@ -294,7 +297,8 @@ class Run:
         self.log.sync()
         counters = self.counters()
         if status != "checkpoint_failed" and len(self.buffer):  # (a crash before any frame leaves nothing to keep)
-            checkpoints.save_last(self.files.checkpoints, self.cfg, self.learner, self.buffer, counters)
+            checkpoints.save_last(self.files.checkpoints, self.cfg, self.learner, self.buffer, counters,
+                                  self.curriculum.transform.carried)
         else:  # the episodes after the last checkpoint will be run again on resume
             counters = checkpoints.saved_counters(self.files.checkpoints) or counters
         self.log.close()
@@ -364,19 +368,20 @@ class Evaluations:
         self.evaluator.close()
 
 
-def resume(out: Path, learner, buffer) -> dict:
-    """Learner, buffer and RNG states of the last checkpoint; forget what came after it.
+def resume(out: Path, learner, buffer) -> tuple[dict, set[str]]:
+    """Learner, buffer and RNG states of the last checkpoint; forget what came after it. Returns
+    the counters and the reward terms the buffer's transitions carry.
 
     Any piece that is missing or damaged stops the resume with one line naming the file."""
     files = RunFiles(out)
     try:
-        counters = checkpoints.load_last(files.checkpoints, learner, buffer)
+        counters, terms = checkpoints.load_last(files.checkpoints, learner, buffer)
     except checkpoints.CheckpointError as err:
         raise SystemExit(f"pamrun: cannot resume {out}: {err}. Restore the file, or start the run again "
                          "in a new directory.") from None
     directory.truncate_logs(out, counters)
     checkpoints.drop_agents_after(files.checkpoints, counters["episodes"])
-    return counters
+    return counters, computed_before_all_terms(directory.saved_config(out)) if terms is None else terms
 
 
 def stopped_by(err: BaseException) -> tuple[str, Exception | None]:
