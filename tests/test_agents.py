@@ -208,6 +208,28 @@ def test_pink_exploration_is_correlated_in_time_and_takes_the_scale():
         assert float((deviation + clean).abs().max()) <= 1.0
 
 
+def test_the_noise_spectrum_changes_during_a_run():
+    """A colored exploration module (``train.walk_noise_beta``) at beta 0 adds white noise; set to 1,
+    it adds pink from the next action on, its chunk drawn at 0 dropped, at the same std."""
+    from tensordict import TensorDict
+
+    cfg = AlgoConfig(name="td3", noise_variance=0.01)
+    actor = networks.make_actor(cfg, 43, 10)
+    explore = networks.make_exploration(cfg, actor, SPEC, colored=True)
+    assert isinstance(explore.module[-1], networks.ColoredNoiseModule)
+    assert not isinstance(networks.make_exploration(cfg, actor, SPEC).module[-1], networks.ColoredNoiseModule)
+    td = TensorDict({"observation": torch.zeros(64, 43)}, [64])
+    with torch.no_grad():
+        clean = actor(td.clone())["action"]
+        runs = {}
+        for beta in (0.0, 1.0):  # 100 steps at each: the change lands inside the first chunk of 400
+            networks.set_noise_beta(explore, beta)
+            runs[beta] = torch.stack([explore(td.clone())["action"] - clean for _ in range(100)])
+    lag1 = {beta: float((d[1:] * d[:-1]).mean() / d.pow(2).mean()) for beta, d in runs.items()}
+    assert abs(lag1[0.0]) < 0.05 and lag1[1.0] > 0.5, lag1
+    assert float(runs[1.0].std()) == pytest.approx(0.1, rel=0.2)
+
+
 def test_bad_algo_values():
     with pytest.raises(ConfigError, match="name"):
         AlgoConfig(name="ppo")

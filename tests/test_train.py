@@ -326,7 +326,7 @@ def test_walk_curriculum_in_a_run(tmp_path, capsys):
 
     run_dir = tmp_path / "curriculum"
     train_here(run_dir, *TINY, "train.max_frames=1000", "train.eval_every_frames=200", "train.eval_episodes=1",
-               "train.walk_kvx=4", "eval.episode_s=0.25", "eval.walk_duration_s=0.25")
+               "train.walk_kvx=4", "train.walk_noise_beta=1", "eval.episode_s=0.25", "eval.walk_duration_s=0.25")
     rows = list(csv.DictReader((run_dir / "evals.csv").open()))
     first = next(int(r["frames"]) for r in rows if float(r["stand_rate"]) == 1 and int(r["frames"]) > 200)
     assert first < 1000  # the learner then learns from relabelled samples of the collector's batches
@@ -335,8 +335,14 @@ def test_walk_curriculum_in_a_run(tmp_path, capsys):
     assert "train.walk_kvx = 4" in capsys.readouterr().out
     events = EventAccumulator(str(run_dir / "tensorboard")).Reload()
     assert [(e.step, e.value) for e in events.Scalars("curriculum/kvx")] == [(first, 4.0)]
+    # white exploration (TD3's, algo.noise_beta 0) until it stands, pink from the next batch on
+    betas = [(e.step, e.value) for e in events.Scalars("exploration/noise_beta")]
+    assert {v for step, v in betas if step <= first} == {0.0} and {v for step, v in betas if step > first} == {1.0}
     train_here(run_dir, f"resume={run_dir}", "train.max_frames=1200")  # the stage carries over a resume
-    assert f"Walking stage of the curriculum since {first} frames" in " ".join(capsys.readouterr().out.split())
+    out = " ".join(capsys.readouterr().out.split())
+    assert f"Walking stage of the curriculum since {first} frames" in out and "1/f^0 -> 1/f^1" in out
+    events = EventAccumulator(str(run_dir / "tensorboard")).Reload()
+    assert {e.value for e in events.Scalars("exploration/noise_beta") if e.step > 1000} == {1.0}
     proc = run_pamrun("train", "experiment=walk", "train.walk_kvx=4", "train.eval_every_frames=0", "train.stop_on_walk=false",
                       f"hydra.run.dir={tmp_path / 'x'}")
     assert proc.returncode != 0 and "train.walk_kvx" in proc.stderr + proc.stdout
@@ -622,6 +628,18 @@ def test_gait_weights_need_a_walking_stage_and_name_a_bad_key():
         to_object(compose_config("experiment=thesis", "+train.gait_weights.kflight=20"))
     with pytest.raises(ConfigError, match="train.gait_weights.kfly"):
         to_object(compose_config("experiment=walker", "+train.gait_weights.kfly=20"))
+
+
+def test_walk_noise_beta_needs_td3_a_walking_stage_and_a_spectrum():
+    from pamrun.config import ConfigError
+
+    for overrides, key in ((("experiment=gait", "train.walk_noise_beta=3"), "train.walk_noise_beta"),
+                           (("experiment=gait", "train.walk_noise_beta=-1"), "train.walk_noise_beta"),
+                           (("experiment=thesis", "algo=td3", "train.walk_noise_beta=1"), "train.walk_noise_beta"),  # no walking stage
+                           (("experiment=gait", "algo=sac", "train.walk_noise_beta=1"), "train.walk_noise_beta")):
+        with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+            to_object(compose_config(*overrides))
+    assert to_object(compose_config("experiment=gait", "train.walk_noise_beta=1")).train.walk_noise_beta == 1.0
 
 
 @pytest.mark.slow

@@ -139,6 +139,11 @@ class TrainConfig:
     # the walk test, these weights (any reward key, e.g. {kflight: 20}) replace the walking stage's,
     # re-weighted the same way. {} = no third stage
     gait_weights: dict[str, float] = field(default_factory=dict)
+    # TD3's exploration noise spectrum (1/f^beta, as algo.noise_beta) from the walking stage on;
+    # algo.noise_beta until then. E.g. algo.noise_beta=0 train.walk_noise_beta=1: white noise while
+    # it learns to stand (k2: stood at 70,000 frames), pink once it walks (k4p: the first clocked
+    # agent to pass the walk test). None = algo.noise_beta throughout
+    walk_noise_beta: Optional[float] = None
     # The gait stage's milestone: None = the walk test (above); a distance = the walking stage's
     # first evaluation in which every episode lasts the full episode and covers at least this many
     # metres (e.g. 2.0: a march at 0.2 m/s that never passes the walk test's 7 m still moves on)
@@ -187,6 +192,21 @@ class TrainConfig:
                  "needs evaluations during training (train.eval_every_frames > 0)")
         _require(self.init_random_frames >= 0, "init_random_frames", "must be >= 0")
         _require(self.actor_start_frames >= 0, "actor_start_frames", "must be >= 0")
+        self._check_stages()
+        _require(self.threads >= 0, "threads", f"must be >= 0 (0 = automatic), got {self.threads}")
+        _require(self.randomize_count >= 1, "randomize_count", f"must be >= 1, got {self.randomize_count}")
+        _require(0 <= self.randomize_prob <= 1, "randomize_prob", f"must lie in [0, 1], got {self.randomize_prob}")
+        _require(self.randomize_reach >= 0 and math.isfinite(self.randomize_reach), "randomize_reach",
+                 f"must be a finite strength >= 0, got {self.randomize_reach}")
+        _check_by_name(self.randomize_weights, "randomize_weights", self.randomize, "randomize",
+                       lambda w: w > 0 and math.isfinite(w),
+                       "must be a finite weight > 0 (leave a name out of train.randomize instead)")
+        _check_by_name(self.randomize_reaches, "randomize_reaches", self.randomize, "randomize",
+                       lambda r: r >= 0 and math.isfinite(r), "must be a finite strength >= 0")
+
+
+    def _check_stages(self) -> None:
+        """The curriculum's keys: walk_kvx, walk_weights, gait_weights and what depends on them."""
         _require(self.walk_kvx is None or self.eval_every_frames > 0, "walk_kvx",
                  "needs evaluations during training (train.eval_every_frames > 0) to know when the agent stands")
         _require(self.walk_kvx is None or math.isfinite(self.walk_kvx), "walk_kvx", "must be finite")
@@ -210,18 +230,12 @@ class TrainConfig:
                  "gait_from_distance_m", f"must be a finite distance > 0 (None = the walk test), got {self.gait_from_distance_m}")
         _require(not self.gait_weights or self.walk_weights or self.walk_kvx is not None, "gait_weights",
                  "is the stage after walking: needs train.walk_weights or train.walk_kvx")
+        _require(self.walk_noise_beta is None or self.walk_weights or self.walk_kvx is not None, "walk_noise_beta",
+                 "sets the walking stage's noise: needs train.walk_weights or train.walk_kvx")
+        _require(self.walk_noise_beta is None or 0 <= self.walk_noise_beta <= 2, "walk_noise_beta",
+                 f"must lie in [0, 2] (0 white, 1 pink, 2 red), got {self.walk_noise_beta}")
         _require(not self.walk_weights or self.eval_every_frames > 0, "walk_weights",
                  "needs evaluations during training (train.eval_every_frames > 0) to know when the agent stands")
-        _require(self.threads >= 0, "threads", f"must be >= 0 (0 = automatic), got {self.threads}")
-        _require(self.randomize_count >= 1, "randomize_count", f"must be >= 1, got {self.randomize_count}")
-        _require(0 <= self.randomize_prob <= 1, "randomize_prob", f"must lie in [0, 1], got {self.randomize_prob}")
-        _require(self.randomize_reach >= 0 and math.isfinite(self.randomize_reach), "randomize_reach",
-                 f"must be a finite strength >= 0, got {self.randomize_reach}")
-        _check_by_name(self.randomize_weights, "randomize_weights", self.randomize, "randomize",
-                       lambda w: w > 0 and math.isfinite(w),
-                       "must be a finite weight > 0 (leave a name out of train.randomize instead)")
-        _check_by_name(self.randomize_reaches, "randomize_reaches", self.randomize, "randomize",
-                       lambda r: r >= 0 and math.isfinite(r), "must be a finite strength >= 0")
 
 
 def _check_by_name(values: dict, key: str, names: list[str], names_key: str, ok, message: str) -> None:

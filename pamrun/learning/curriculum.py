@@ -207,5 +207,8 @@ class WalkCurriculum:
                     f"train.walk_weights; the env keeps reward.*).{self._describe_adapt()}")
         why = ("from the first frame, a trained agent's run (train.init_from)" if self.cfg.train.init_from else
                f"since {self.since} frames, when it first stood in every evaluation episode")
+        beta = self.cfg.train.walk_noise_beta
+        noise = ("" if beta is None else f" Exploration noise 1/f^{self.cfg.algo.noise_beta:g} -> "
+                 f"1/f^{beta:g} (train.walk_noise_beta).")
         return (f"Walking stage of the curriculum {why}: the learner's weights {changed} "
-                f"(train.walk_kvx = {self.kvx}, train.walk_weights; the env keeps reward.*).")
+                f"(train.walk_kvx = {self.kvx}, train.walk_weights; the env keeps reward.*).{noise}")

@@ -143,9 +143,10 @@ def make_critic(cfg: AlgoConfig, obs_size: int, action_size: int) -> nn.Module:
     return cls(obs_size, action_size, tuple(cfg.hidden_sizes), cfg.output_init_scale)
 
 
-def make_exploration(cfg: AlgoConfig, actor: TensorDictModule, action_spec) -> TensorDictSequential:
+def make_exploration(cfg: AlgoConfig, actor: TensorDictModule, action_spec, colored: bool = False) -> TensorDictSequential:
     """The actor followed by TorchRL's exploration noise module for this algorithm (SAC: its own
-    sampled actions)."""
+    sampled actions); TD3's is a :class:`ColoredNoiseModule` with ``algo.noise_beta`` or ``colored``
+    (its spectrum to change during the run: :func:`set_noise_beta`)."""
     if cfg.name == "sac":
         return TensorDictSequential(TensorDictModule(_Sampler(actor.module), in_keys=["observation"],
                                                      out_keys=["action"]))
@@ -158,7 +159,7 @@ def make_exploration(cfg: AlgoConfig, actor: TensorDictModule, action_spec) -> T
             eps_init=1.0,
             eps_end=1.0,  # the decay is set by set_noise_scale (exponential, as MATLAB's)
         )
-    elif cfg.noise_beta:
+    elif cfg.noise_beta or colored:
         noise = ColoredNoiseModule(action_spec, math.sqrt(cfg.noise_variance), cfg.noise_beta, cfg.noise_chunk_steps)
     else:
         noise = AdditiveGaussianModule(
@@ -182,19 +183,30 @@ def colored_noise(beta: float, steps: int, shape: tuple[int, ...]) -> torch.Tens
 class ColoredNoiseModule(AdditiveGaussianModule):
     """TD3's additive exploration noise, colored (``algo.noise_beta``): each action's noise is a
     :func:`colored_noise` series through a chunk of ``chunk_steps`` control steps, then a fresh
-    chunk; its std and the ``sigma`` multiplier (:func:`set_noise_scale`) are the Gaussian's."""
+    chunk; its std and the ``sigma`` multiplier (:func:`set_noise_scale`) are the Gaussian's. ``beta``
+    is a buffer, so a collector's workers take a change of it (:func:`set_noise_beta`) with the
+    policy's weights; a chunk drawn at another beta is dropped."""
 
     def __init__(self, action_spec, std: float, beta: float, chunk_steps: int):
         super().__init__(spec=action_spec, sigma_init=1.0, sigma_end=1.0, mean=0.0, std=std)
-        self.beta, self.chunk_steps = beta, chunk_steps
-        self._chunk, self._next = None, 0
+        self.register_buffer("beta", torch.tensor(float(beta)))
+        self.chunk_steps = chunk_steps
+        self._chunk, self._next, self._chunk_beta = None, 0, float(beta)
 
     def _add_noise(self, action: torch.Tensor) -> torch.Tensor:
-        if self._chunk is None or self._next == self.chunk_steps or self._chunk.shape[1:] != action.shape:
-            self._chunk, self._next = colored_noise(self.beta, self.chunk_steps, tuple(action.shape)), 0
+        beta = float(self.beta)
+        if (self._chunk is None or self._next == self.chunk_steps or self._chunk.shape[1:] != action.shape
+                or beta != self._chunk_beta):
+            self._chunk, self._next, self._chunk_beta = colored_noise(beta, self.chunk_steps, tuple(action.shape)), 0, beta
         noise = self._chunk[self._next].to(action)
         self._next += 1
         return self.spec[self.action_key].project(action + noise * self.std * self.sigma)
+
+
+def set_noise_beta(explore: TensorDictSequential, beta: float) -> None:
+    """The exploration noise's spectrum from the next action on (1/f^beta): a
+    :class:`ColoredNoiseModule` only (``make_exploration``'s ``colored``)."""
+    explore.module[-1].beta.fill_(beta)
 
 
 def noise_scale(cfg: AlgoConfig, frames: int) -> float:
@@ -241,14 +253,15 @@ class Learner:
 
     follows_actor_target = True  # the actor has a target network that follows it
 
-    def __init__(self, cfg: AlgoConfig, obs_size: int, action_size: int, action_spec, mirror=None):
+    def __init__(self, cfg: AlgoConfig, obs_size: int, action_size: int, action_spec, mirror=None,
+                 colored_noise: bool = False):
         self.cfg = cfg
         self.mirror = None if mirror is None else tuple(torch.as_tensor(m) for m in mirror)
         self.actor = make_actor(cfg, obs_size, action_size)  # a TensorDictModule, for the collector
         self.critics = nn.ModuleList(make_critic(cfg, obs_size, action_size) for _ in range(n_critics(cfg)))
         self.actor_target = copy.deepcopy(self.actor.module).requires_grad_(False)  # unused by SAC
         self.critic_targets = copy.deepcopy(self.critics).requires_grad_(False)
-        self.explore = make_exploration(cfg, self.actor, action_spec)
+        self.explore = make_exploration(cfg, self.actor, action_spec, colored_noise)
         self.low, self.high = action_spec.space.low, action_spec.space.high
         self.critic_params = list(self.critics.parameters())
         self.actor_params = list(self.actor.module.parameters())
@@ -406,8 +419,9 @@ class SACLearner(Learner):
 
     follows_actor_target = False
 
-    def __init__(self, cfg: AlgoConfig, obs_size: int, action_size: int, action_spec, mirror=None):
-        super().__init__(cfg, obs_size, action_size, action_spec, mirror)
+    def __init__(self, cfg: AlgoConfig, obs_size: int, action_size: int, action_spec, mirror=None,
+                 colored_noise: bool = False):
+        super().__init__(cfg, obs_size, action_size, action_spec, mirror, colored_noise)
         self.log_alpha = torch.tensor(math.log(cfg.init_alpha), requires_grad=True)  # the temperature
         self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=cfg.actor_lr)
         self.target_entropy = cfg.target_entropy * action_size
@@ -448,7 +462,9 @@ def n_critics(cfg: AlgoConfig) -> int:
     return 1 if cfg.name == "ddpg" else 2
 
 
-def make_learner(cfg: AlgoConfig, obs_size: int, action_size: int, action_spec, mirror=None) -> Learner:
+def make_learner(cfg: AlgoConfig, obs_size: int, action_size: int, action_spec, mirror=None,
+                 colored_noise: bool = False) -> Learner:
     """The learner of ``cfg.name`` for an env with these sizes and action spec (``mirror``: the
-    observation's and action's mirror maps, for ``algo.mirror_loss``)."""
-    return LEARNERS[cfg.name](cfg, obs_size, action_size, action_spec, mirror)
+    observation's and action's mirror maps, for ``algo.mirror_loss``; ``colored_noise``: TD3's
+    exploration noise a :class:`ColoredNoiseModule` whatever ``algo.noise_beta``)."""
+    return LEARNERS[cfg.name](cfg, obs_size, action_size, action_spec, mirror, colored_noise)

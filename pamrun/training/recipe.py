@@ -103,7 +103,7 @@ def make_learner(cfg: Config) -> networks.Learner:
     mirror = None
     if cfg.algo.mirror_loss:  # the observation's and action's mirror images (pamrun/task/symmetry.py)
         mirror = (*observation_map(sizes[1], cfg.env.speed_command, cfg.env.gait_period_s > 0), *action_map(sizes[1]))
-    return networks.make_learner(cfg.algo, *sizes, spec, mirror)
+    return networks.make_learner(cfg.algo, *sizes, spec, mirror, colored_noise=cfg.train.walk_noise_beta is not None)
 
 
 def make_buffer(cfg: Config, curriculum: WalkCurriculum):
@@ -216,10 +216,18 @@ class Run:
                 "wall_time_s": self.clock.seconds()}
 
     def set_noise(self) -> float:
-        """The exploration noise's scale at this frame count (:func:`pamrun.learning.networks.noise_scale`)."""
+        """The exploration noise's scale at this frame count (:func:`pamrun.learning.networks.noise_scale`),
+        and its spectrum at this stage (``train.walk_noise_beta`` from the walking stage on)."""
         scale = networks.noise_scale(self.cfg.algo, self.frames)
         networks.set_noise_scale(self.learner.explore, scale)
+        if self.cfg.train.walk_noise_beta is not None:
+            networks.set_noise_beta(self.learner.explore, self.noise_beta())
         return math.sqrt(self.cfg.algo.noise_variance) * scale
+
+    def noise_beta(self) -> float:
+        """The exploration noise's spectrum now, 1/f^beta."""
+        walk = self.cfg.train.walk_noise_beta
+        return walk if walk is not None and self.curriculum.walking else self.cfg.algo.noise_beta
 
     def collect(self, batch) -> None:
         """A collected batch into the buffer; its finished episodes logged (with Q0) and saved
@@ -266,6 +274,8 @@ class Run:
         w.add_scalar("throughput/frames_per_s", self.frames / elapsed, self.frames)
         w.add_scalar("throughput/updates_per_s", self.learner.updates / elapsed, self.frames)
         w.add_scalar("exploration/noise_std", self.noise_std, self.frames)
+        if t.walk_noise_beta is not None:
+            w.add_scalar("exploration/noise_beta", self.noise_beta(), self.frames)
         self.progress.update(self.counters(), f"avg {self.log.average():.2f}  best {self.log.best:.2f}")
         if self.frames % t.checkpoint_every_frames < n:
             self.log.sync()
@@ -283,6 +293,7 @@ class Run:
                 self.log.writer.add_scalar(f"curriculum/{key}", weight, self.frames)
             self.info["gait_weights_from_frames" if self.curriculum.stage == "gait" else "walk_kvx_from_frames"] = self.frames
             self.console.print(self.curriculum.describe(), soft_wrap=True)
+            self.noise_std = self.set_noise()  # the stage's noise from the next action on
         if self.curriculum.stage == "gait":
             for key, weight in self.curriculum.adapted().items():  # train.adapt_weights, after this evaluation
                 self.log.writer.add_scalar(f"curriculum/{key}", weight, self.frames)
