@@ -49,11 +49,12 @@ def reweighted_terms(cfg: Config) -> tuple[str, ...]:
                  if k in t.walk_weights or k in t.gait_weights or (k == "kvx" and t.walk_kvx is not None))
 
 
-def computed_before_all_terms(cfg: Config) -> set[str]:
-    """The terms the env of a run ``cfg`` computed when training computed only those of weight
-    not 0 and those its stages may weigh (pamrun before every term was computed); a buffer it
-    filled holds 0 for the others."""
-    return {k for k in REWARD_KEYS if getattr(cfg.reward, k) != 0.0} | set(reweighted_terms(cfg))
+def weighed_terms(cfg: Config) -> tuple[str, ...]:
+    """The terms the env's reward or a stage of the run ``cfg`` weighs, in ``REWARD_KEYS`` order:
+    those a training episode's sums are kept for (TensorBoard's ``reward_terms/*``), and those a
+    buffer carries that a pamrun filled before every term was computed (it holds 0 for the others)."""
+    stages = set(reweighted_terms(cfg))
+    return tuple(k for k in REWARD_KEYS if getattr(cfg.reward, k) != 0.0 or k in stages)
 
 
 class FeatureReader(BaseInfoDictReader):

@@ -10,7 +10,7 @@ import torch
 
 from pamrun.config import Config, ConfigError
 from pamrun.learning import checkpoints, networks
-from pamrun.learning.curriculum import computed_before_all_terms, reweighted_terms
+from pamrun.learning.curriculum import reweighted_terms, weighed_terms
 from pamrun.runs import directory
 from pamrun.runs.directory import RunFiles
 from pamrun.task.observation import space_sizes
@@ -92,5 +92,5 @@ def carried_terms(path: Path, record: dict, config: dict) -> set[str]:
         return set(record["terms"])
     run = path.parent.parent
     if RunFiles(run).config.exists():
-        return computed_before_all_terms(directory.saved_config(run))
+        return set(weighed_terms(directory.saved_config(run)))
     return {k for k in REWARD_KEYS if (config.get("reward") or {}).get(k, 0.0) != 0.0}

@@ -37,7 +37,7 @@ from pamrun.config import Config, ConfigError, to_object, without_hydra
 from pamrun.evaluation import board, figures
 from pamrun.evaluation.evaluator import TrainingEvaluator
 from pamrun.learning import checkpoints, networks
-from pamrun.learning.curriculum import COMPUTED, FEATURES, FeatureReader, WalkCurriculum, computed_before_all_terms
+from pamrun.learning.curriculum import COMPUTED, FEATURES, FeatureReader, WalkCurriculum, weighed_terms
 from pamrun.runs import directory
 from pamrun.runs.directory import EVAL_FIELDS, CsvLog, EpisodeLog, RunFiles
 from pamrun.runs.files import console as make_console
@@ -199,7 +199,7 @@ class Run:
         self.noise_std = self.set_noise()
         self.log = EpisodeLog(out, cfg.train.avg_window, SummaryWriter(str(self.files.tensorboard)),
                               counters["episodes"])
-        self.tracker = EpisodeTracker(list(COMPUTED))
+        self.tracker = EpisodeTracker(list(weighed_terms(cfg)))  # the terms TensorBoard may show
         self.evals = Evaluations(cfg, out, self.log.writer, console) if cfg.train.eval_every_frames else None
         self.info = directory.start_run_json(out, cfg, resuming, self.frames, overrides)
         if curriculum.walking:
@@ -392,7 +392,7 @@ def resume(out: Path, learner, buffer) -> tuple[dict, set[str]]:
                          "in a new directory.") from None
     directory.truncate_logs(out, counters)
     checkpoints.drop_agents_after(files.checkpoints, counters["episodes"])
-    return counters, computed_before_all_terms(directory.saved_config(out)) if terms is None else terms
+    return counters, set(weighed_terms(directory.saved_config(out))) if terms is None else terms
 
 
 def stopped_by(err: BaseException) -> tuple[str, Exception | None]:
