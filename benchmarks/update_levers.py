@@ -16,7 +16,9 @@ alike), ``--repeats`` times:
    learner, not of its speed alone);
 4. ``batch_256_half``: batch 256 at one update every 2nd frame: the same samples per frame in
    half the updates (also a change of the learner); its rate is reported per frame, i.e. twice
-   its updates/s.
+   its updates/s;
+5. ``crossq``: ``algo.crossq`` with the paper's actor every 3rd update and Adam beta1 0.5
+   (batch-renormalised critics, no targets, one pass of both batches; a change of the learner).
 
 It prints each lever's rate and the shipped one's (updates per second, or frames per second of
 updates for ``batch_256_half``), min / median / max and the ratio of the medians, and appends them
@@ -126,6 +128,7 @@ LEVERS = {  # name -> (a learner with the lever, its batch size, updates per fra
     "compiled": (_compiled, 128, 1.0),
     "hidden_256": (lambda: _learner(hidden_sizes=[256, 256]), 128, 1.0),
     "batch_256_half": (lambda: _learner(batch_size=256), 256, 0.5),
+    "crossq": (lambda: _learner(crossq=True, actor_update_every=3, adam_beta1=0.5), 128, 1.0),
 }
 
 

@@ -9,7 +9,7 @@ import torch
 from torchrl.data import Bounded
 
 from pamrun.config import AlgoConfig, ConfigError
-from pamrun.learning import networks
+from pamrun.learning import exploration, networks
 
 SPEC = Bounded(-torch.ones(10), torch.ones(10), (10,))
 
@@ -142,13 +142,86 @@ def test_td3_has_two_independent_critics():
     assert len(networks.make_learner(AlgoConfig(name="ddpg"), 43, 10, SPEC).critics) == 1
 
 
+@pytest.mark.parametrize("name", ["td3", "sac"])
+def test_crossq_learns_without_targets_from_one_joint_pass(name):
+    """algo.crossq: batch-renormalised critics and no critic targets; the critic loss is TD3's / SAC's
+    with a' from the actor itself and Q(s', a') from the same pass as Q(s, a), whose statistics (the
+    two batches together) the renormalisation keeps; the actor's step leaves them alone; updates on a
+    fixed batch fit the critics."""
+    torch.manual_seed(0)
+    cfg = AlgoConfig(name=name, critic="concat", crossq=True, policy_noise=0.0, adam_beta1=0.5, critic_lr=1e-3)
+    learner = networks.make_learner(cfg, 43, 10, SPEC)
+    norms = [m for m in learner.critics[0].modules() if isinstance(m, networks.BatchRenorm)]
+    assert len(norms) == 3 and len(learner.critic_targets) == 0 and learner.critic_opt.param_groups[0]["betas"][0] == 0.5
+    batch = _batch()
+    nxt = batch["next"]
+    obs, action = batch["observation"], batch["action"]
+    # the loss by hand: both batches through each critic at once, the target from the second half
+    torch.manual_seed(1)
+    ours = learner.critic_loss(obs, action, nxt["reward"], nxt["observation"], nxt["terminated"]).detach()
+    torch.manual_seed(1)
+    with torch.no_grad():
+        next_action, correction = learner.next_action(nxt["observation"], action)
+        if name == "td3":
+            assert torch.equal(next_action, learner.actor.module(nxt["observation"]))  # no target actor
+        both = [c(torch.cat([obs, nxt["observation"]]), torch.cat([action, next_action])) for c in learner.critics]
+        y = nxt["reward"] + cfg.gamma * (~nxt["terminated"]) * (torch.min(both[0][64:], both[1][64:]) - correction)
+        expected = sum(((q[:64] - y) ** 2).mean() for q in both)
+    assert float(ours) == pytest.approx(float(expected), rel=1e-5)
+    mean_in = torch.cat([torch.cat([obs, nxt["observation"]]), torch.cat([action, next_action])], dim=1).mean(0)
+    # two training passes of this critic so far (the loss's and the one by hand), each 0.01 of the way
+    torch.testing.assert_close(norms[0].running_mean, mean_in * (1 - 0.99 ** 2), rtol=1e-4, atol=1e-6)
+    first = _critic_loss(learner, batch)
+    before = [m.running_mean.clone() for m in norms]
+    learner.updates = 0  # an actor step at the next update
+    learner.critics.eval()
+    learner.actor_loss(obs).backward()
+    learner.critics.train()
+    assert all(torch.equal(m.running_mean, b) for m, b in zip(norms, before))
+    for _ in range(40):
+        learner.update(batch)
+    assert _critic_loss(learner, batch) < 0.5 * first
+    assert all(m.training for m in learner.critics.modules())
+
+
+def test_batch_renorm_is_torchrl_s_with_its_warm_up_ending():
+    """pamrun's BatchRenorm gives TorchRL's BatchRenorm1d's outputs, gradients and running statistics,
+    in the warm-up, after it (r and d clipped: a shifted, scaled input) and in eval mode; and after
+    the warm-up its factor stays 1, where TorchRL 0.14.1's count runs on and its factor grows."""
+    from torchrl.modules import BatchRenorm1d
+
+    torch.manual_seed(0)
+    ours, theirs = networks.BatchRenorm(5, warmup_steps=3), BatchRenorm1d(5, warmup_steps=3)
+    with torch.no_grad():
+        for norm in (ours, theirs):
+            norm.weight.copy_(torch.linspace(0.5, 2.0, 5))
+            norm.bias.copy_(torch.linspace(-1.0, 1.0, 5))
+    for step in range(5):  # 3 batch-norm steps, then 2 renormalised ones (TorchRL's factor still 1)
+        x = (torch.randn(32, 5) * (1 + 4 * step) + 3 * step).requires_grad_()
+        y_ours, y_theirs = ours(x), theirs(x)
+        torch.testing.assert_close(y_ours, y_theirs, rtol=1e-4, atol=1e-5)
+        g_ours = torch.autograd.grad((y_ours ** 3).sum(), (x, ours.weight))
+        g_theirs = torch.autograd.grad((y_theirs ** 3).sum(), (x, theirs.weight))
+        for a, b in zip(g_ours, g_theirs):
+            torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-4)
+    torch.testing.assert_close(ours.running_mean, theirs.running_mean)
+    torch.testing.assert_close(ours.running_var, theirs.running_var)
+    ours.eval(), theirs.eval()
+    x = torch.randn(16, 5)
+    torch.testing.assert_close(ours(x), theirs(x), rtol=1e-5, atol=1e-5)
+    ours.train()
+    for _ in range(7):
+        ours(torch.randn(8, 5))
+    assert int(ours.num_batches_tracked) == 3
+
+
 def test_noise_schedule_follows_matlab_variance_decay():
     cfg = AlgoConfig(noise_variance=0.5, noise_decay=1e-5, noise_variance_min=0.0)
-    assert networks.noise_scale(cfg, 0) == 1.0
+    assert exploration.noise_scale(cfg, 0) == 1.0
     # variance 0.5 * (1 - 1e-5)^k, so the std halves after ln(4) / 1e-5 ~ 138,629 steps
-    assert networks.noise_scale(cfg, 138_629) == pytest.approx(0.5, rel=1e-3)
+    assert exploration.noise_scale(cfg, 138_629) == pytest.approx(0.5, rel=1e-3)
     floor = AlgoConfig(noise_variance=0.5, noise_decay=1e-5, noise_variance_min=0.05)
-    assert networks.noise_scale(floor, 10_000_000) == pytest.approx(math.sqrt(0.1))
+    assert exploration.noise_scale(floor, 10_000_000) == pytest.approx(math.sqrt(0.1))
 
 
 def test_exploration_modules_take_the_scale():
@@ -158,10 +231,10 @@ def test_exploration_modules_take_the_scale():
     for name in ("ddpg", "td3"):
         cfg = AlgoConfig(name=name)
         actor = networks.make_actor(cfg, 43, 10)
-        explore = networks.make_exploration(cfg, actor, SPEC)
+        explore = exploration.make_exploration(cfg, actor, SPEC)
         spread = {}
         for scale in (0.1, 0.2):
-            networks.set_noise_scale(explore, scale)
+            exploration.set_noise_scale(explore, scale)
             td = TensorDict({"observation": torch.zeros(4000, 43), "is_init": torch.ones(4000, 1, dtype=torch.bool)},
                             [4000])
             with torch.no_grad():
@@ -176,7 +249,7 @@ def test_colored_noise_has_the_spectrum_it_is_asked_for():
     spectrum's log-log slope is -beta."""
     torch.manual_seed(0)
     for beta, lag1 in ((0.0, (-0.02, 0.02)), (1.0, (0.5, 0.9)), (2.0, (0.95, 1.0))):
-        series = networks.colored_noise(beta, 400, (500,))
+        series = exploration.colored_noise(beta, 400, (500,))
         assert series.shape == (400, 500)
         assert torch.allclose(series.pow(2).mean(dim=0), torch.ones(500), atol=1e-4)
         correlation = float((series[1:] * series[:-1]).mean())
@@ -194,13 +267,13 @@ def test_pink_exploration_is_correlated_in_time_and_takes_the_scale():
 
     cfg = AlgoConfig(name="td3", noise_variance=0.01, noise_beta=1.0)
     actor = networks.make_actor(cfg, 43, 10)
-    explore = networks.make_exploration(cfg, actor, SPEC)
+    explore = exploration.make_exploration(cfg, actor, SPEC)
     td = TensorDict({"observation": torch.zeros(64, 43)}, [64])
     with torch.no_grad():
         clean = actor(td.clone())["action"]
         runs = {}
         for scale in (1.0, 2.0):
-            networks.set_noise_scale(explore, scale)
+            exploration.set_noise_scale(explore, scale)
             runs[scale] = torch.stack([explore(td.clone())["action"] - clean for _ in range(400)])
     for scale, deviation in runs.items():
         assert float(deviation.std()) == pytest.approx(0.1 * scale, rel=0.15), scale
@@ -215,15 +288,15 @@ def test_the_noise_spectrum_changes_during_a_run():
 
     cfg = AlgoConfig(name="td3", noise_variance=0.01)
     actor = networks.make_actor(cfg, 43, 10)
-    explore = networks.make_exploration(cfg, actor, SPEC, colored=True)
-    assert isinstance(explore.module[-1], networks.ColoredNoiseModule)
-    assert not isinstance(networks.make_exploration(cfg, actor, SPEC).module[-1], networks.ColoredNoiseModule)
+    explore = exploration.make_exploration(cfg, actor, SPEC, colored=True)
+    assert isinstance(explore.module[-1], exploration.ColoredNoiseModule)
+    assert not isinstance(exploration.make_exploration(cfg, actor, SPEC).module[-1], exploration.ColoredNoiseModule)
     td = TensorDict({"observation": torch.zeros(64, 43)}, [64])
     with torch.no_grad():
         clean = actor(td.clone())["action"]
         runs = {}
         for beta in (0.0, 1.0):  # 100 steps at each: the change lands inside the first chunk of 400
-            networks.set_noise_beta(explore, beta)
+            exploration.set_noise_beta(explore, beta)
             runs[beta] = torch.stack([explore(td.clone())["action"] - clean for _ in range(100)])
     lag1 = {beta: float((d[1:] * d[:-1]).mean() / d.pow(2).mean()) for beta, d in runs.items()}
     assert abs(lag1[0.0]) < 0.05 and lag1[1.0] > 0.5, lag1
@@ -241,6 +314,14 @@ def test_bad_algo_values():
         AlgoConfig(name="ddpg", noise_beta=1.0)
     with pytest.raises(ConfigError, match="noise_chunk_steps"):
         AlgoConfig(name="td3", noise_chunk_steps=1)
+    with pytest.raises(ConfigError, match="crossq"):
+        AlgoConfig(name="ddpg", critic="concat", crossq=True)
+    with pytest.raises(ConfigError, match="crossq"):
+        AlgoConfig(name="td3", crossq=True)  # the thesis' critic
+    with pytest.raises(ConfigError, match="adam_beta1"):
+        AlgoConfig(adam_beta1=1.0)
+    with pytest.raises(ConfigError, match="renorm_warmup_updates"):
+        AlgoConfig(renorm_warmup_updates=-1)
 
 
 def test_critic_only_updates_leave_the_actor_alone():

@@ -348,6 +348,20 @@ def test_walk_curriculum_in_a_run(tmp_path, capsys):
     assert proc.returncode != 0 and "train.walk_kvx" in proc.stderr + proc.stdout
 
 
+def test_a_crossq_run_trains_and_resumes_with_its_critics_statistics(tmp_path):
+    """``algo.crossq=true``: a run saves no critic targets and its critics' renormalisation state,
+    which a resume takes up (the count of training batches runs on from the checkpoint's)."""
+    run_dir = tmp_path / "crossq"
+    crossq = ("algo.crossq=true", "algo.actor_update_every=3", "algo.adam_beta1=0.5", "train.eval_every_frames=0")
+    assert train_here(run_dir, *TINY, *crossq) == "max_frames"
+    state = torch.load(run_dir / "checkpoints" / "last.pt", weights_only=False)["networks"]
+    assert state["critic_targets"] == {}
+    assert int(state["critics"]["0.net.0.num_batches_tracked"]) == 100  # (600 - 200 random) x 0.25 updates
+    assert train_here(run_dir, f"resume={run_dir}", "train.max_frames=800") == "max_frames"
+    state = torch.load(run_dir / "checkpoints" / "last.pt", weights_only=False)["networks"]
+    assert int(state["critics"]["1.net.3.num_batches_tracked"]) == 150
+
+
 @pytest.mark.slow
 def test_resume_takes_a_new_budget_and_names_what_it_ignores(tmp_path):
     """``resume=<dir> train.max_frames=...`` extends a finished run; any other value on a resume's

@@ -52,9 +52,23 @@ class AlgoConfig:
     # observation's and action's mirror images (pamrun/task/symmetry.py): the policy is asked to be its own
     # mirror image, beyond mirrored data (train.mirror). Yu, Turk & Liu, SIGGRAPH 2018: weight 4. 0 = off.
     mirror_loss: float = 0.0
+    # CrossQ (Bhatt, Palenicek et al., ICLR 2024), for td3 or sac: the concatenating critics batch-renormalised
+    # (Ioffe 2017: at the input and after each hidden layer), no target networks, and Q(s, a) with Q(s', a') in
+    # one forward pass, so that both share the normalisation's statistics. The paper's other choices are keys of
+    # their own: adam_beta1 0.5 and actor_update_every 3. Its renormalisation acts as batch normalisation for the
+    # first renorm_warmup_updates updates (the paper's 100,000).
+    crossq: bool = False
+    renorm_warmup_updates: int = 100_000
+    adam_beta1: float = 0.9  # Adam's beta1, every optimiser's (torch's default; CrossQ: 0.5)
 
     def __post_init__(self) -> None:
         _require(self.name in ("ddpg", "td3", "sac"), "name", f"unknown algorithm {self.name!r}; known: ddpg, td3, sac")
+        _require(not self.crossq or self.name in ("td3", "sac"), "crossq",
+                 f"drops the target networks of td3's or sac's twin critics; algo.name is {self.name}")
+        _require(not self.crossq or self.critic == "concat", "crossq",
+                 "batch-renormalises the concatenating critic: needs algo.critic=concat")
+        _require(self.renorm_warmup_updates >= 0, "renorm_warmup_updates", f"must be >= 0, got {self.renorm_warmup_updates}")
+        _require(0 <= self.adam_beta1 < 1, "adam_beta1", f"must lie in [0, 1), got {self.adam_beta1}")
         _require(0 < self.gamma <= 1, "gamma", f"must lie in (0, 1], got {self.gamma}")
         _require(self.batch_size >= 1, "batch_size", f"must be >= 1, got {self.batch_size}")
         _require(0 < self.target_smoothing <= 1, "target_smoothing", "must lie in (0, 1]")

@@ -8,7 +8,7 @@
   ``VarianceDecayRate``).
 * ``td3``: the loss of ``TD3Loss`` (twin critics, target policy smoothing) with delayed
   actor updates and Gaussian exploration, the thesis' proposed next step (§13); with
-  ``algo.noise_beta`` the Gaussian is colored over time (pink: Eberhard et al., ICLR 2023).
+  ``algo.noise_beta`` the Gaussian is colored over time (:mod:`pamrun.learning.exploration`).
 
 The losses are computed on plain tensors by :class:`Learner` (checked against TorchRL's).
 
@@ -21,15 +21,12 @@ import copy
 import math
 
 import torch
-from tensordict.nn import TensorDictModule, TensorDictSequential
+from tensordict.nn import TensorDictModule
 from torch import nn
-from torchrl.modules import (
-    AdditiveGaussianModule,
-    OrnsteinUhlenbeckProcessModule,
-    TanhNormal,
-)
+from torchrl.modules import BatchRenorm1d, TanhNormal
 
 from pamrun.config import AlgoConfig
+from pamrun.learning.exploration import make_exploration
 
 ALGOS = ("ddpg", "td3", "sac")
 
@@ -88,18 +85,6 @@ class SquashedGaussianActor(ThesisActor):
         return torch.tanh(u), log_prob.sum(-1, keepdim=True)
 
 
-class _Sampler(nn.Module):
-    """The collector's SAC policy: an action sampled from the actor's distribution."""
-
-    def __init__(self, actor: SquashedGaussianActor):
-        super().__init__()
-        self.actor = actor
-
-    def forward(self, observation: torch.Tensor) -> torch.Tensor:
-        with torch.no_grad():
-            return self.actor.sample(observation)[0]
-
-
 class ThesisCritic(nn.Module):
     """Table 9.2: Q(observation, action) with separate observation and action paths."""
 
@@ -132,6 +117,55 @@ class ConcatCritic(nn.Module):
         return self.net(torch.cat([observation, action], dim=-1))
 
 
+class BatchRenorm(BatchRenorm1d):
+    """TorchRL's ``BatchRenorm1d`` (Ioffe 2017) on a (batch, features) input, with two changes:
+    - its count of training batches stops at ``warmup_steps``: TorchRL 0.14.1 caps it with
+      ``clamp_max``, which is not in place, so its warm-up factor ``count // warmup_steps`` goes
+      on past 1 (r - 1 and d doubled after twice the warm-up, tripled after three times);
+    - the batch's mean and variance in one pass and the normalisation folded into one scale and
+      shift per feature (the same numbers to rounding): TorchRL's five passes over the batch made
+      CrossQ's update 1.8 times as slow as TD3's on 2 CPU cores (benchmarks/update_levers.py)."""
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        if not self.training:
+            scale = self.weight / (self.running_var + self.eps).sqrt()
+            return torch.addcmul(self.bias - self.running_mean * scale, x, scale)
+        b_var, b_mean = torch.var_mean(x, dim=0, correction=0)
+        b_std = (b_var + self.eps).sqrt()
+        with torch.no_grad():
+            running_std = (self.running_var + self.eps).sqrt()
+            warm = 1.0 if self.warmup_steps == 0 else float(self.num_batches_tracked >= self.warmup_steps)
+            r = 1.0 + (torch.clamp(b_std / running_std, 1 / self.max_r, self.max_r) - 1.0) * warm
+            d = torch.clamp((b_mean - self.running_mean) / running_std, -self.max_d, self.max_d) * warm
+            self.running_var += self.momentum * (b_var * x.shape[0] / (x.shape[0] - 1) - self.running_var)
+            self.running_mean += self.momentum * (b_mean - self.running_mean)
+            self.num_batches_tracked.add_(1).clamp_(max=self.warmup_steps)
+        scale = self.weight * r / b_std  # y = w ((x - mean) r / std + d) + b
+        return torch.addcmul(self.bias + self.weight * d - b_mean * scale, x, scale)
+
+
+class CrossQCritic(nn.Module):
+    """CrossQ's critic (Bhatt, Palenicek et al. 2024; as SBX's): the concatenated observation and
+    action batch-renormalised, then two hidden layers, each ReLU followed by batch renormalisation
+    (TorchRL's momentum 0.01, i.e. the paper's 0.99 in Flax's convention), then Q. In training mode
+    it normalises with the batch's statistics (after the warm-up, renormalised towards the running
+    ones) and moves the running ones; in eval mode it uses the running ones."""
+
+    def __init__(self, obs_size: int, action_size: int, hidden: tuple[int, int], init_scale: float,
+                 warmup_updates: int):
+        super().__init__()
+        def norm(n):
+            return BatchRenorm(n, warmup_steps=warmup_updates)
+        self.net = nn.Sequential(norm(obs_size + action_size),
+                                 nn.Linear(obs_size + action_size, hidden[0]), nn.ReLU(), norm(hidden[0]),
+                                 nn.Linear(hidden[0], hidden[1]), nn.ReLU(), norm(hidden[1]), nn.Linear(hidden[1], 1))
+        nn.init.uniform_(self.net[-1].weight, -init_scale, init_scale)
+        nn.init.uniform_(self.net[-1].bias, -init_scale, init_scale)
+
+    def forward(self, observation: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
+        return self.net(torch.cat([observation, action], dim=-1))
+
+
 def make_actor(cfg: AlgoConfig, obs_size: int, action_size: int) -> TensorDictModule:
     cls = SquashedGaussianActor if cfg.name == "sac" else ThesisActor
     net = cls(obs_size, action_size, tuple(cfg.hidden_sizes), cfg.output_init_scale)
@@ -139,94 +173,11 @@ def make_actor(cfg: AlgoConfig, obs_size: int, action_size: int) -> TensorDictMo
 
 
 def make_critic(cfg: AlgoConfig, obs_size: int, action_size: int) -> nn.Module:
+    if cfg.crossq:
+        return CrossQCritic(obs_size, action_size, tuple(cfg.hidden_sizes), cfg.output_init_scale,
+                            cfg.renorm_warmup_updates)
     cls = ConcatCritic if cfg.critic == "concat" else ThesisCritic
     return cls(obs_size, action_size, tuple(cfg.hidden_sizes), cfg.output_init_scale)
-
-
-def make_exploration(cfg: AlgoConfig, actor: TensorDictModule, action_spec, colored: bool = False) -> TensorDictSequential:
-    """The actor followed by TorchRL's exploration noise module for this algorithm (SAC: its own
-    sampled actions); TD3's is a :class:`ColoredNoiseModule` with ``algo.noise_beta`` or ``colored``
-    (its spectrum to change during the run: :func:`set_noise_beta`)."""
-    if cfg.name == "sac":
-        return TensorDictSequential(TensorDictModule(_Sampler(actor.module), in_keys=["observation"],
-                                                     out_keys=["action"]))
-    if cfg.name == "ddpg":
-        noise = OrnsteinUhlenbeckProcessModule(
-            spec=action_spec,
-            sigma=math.sqrt(cfg.noise_variance),
-            theta=cfg.ou_theta,
-            dt=cfg.ou_dt_s,
-            eps_init=1.0,
-            eps_end=1.0,  # the decay is set by set_noise_scale (exponential, as MATLAB's)
-        )
-    elif cfg.noise_beta or colored:
-        noise = ColoredNoiseModule(action_spec, math.sqrt(cfg.noise_variance), cfg.noise_beta, cfg.noise_chunk_steps)
-    else:
-        noise = AdditiveGaussianModule(
-            spec=action_spec, sigma_init=1.0, sigma_end=1.0, mean=0.0, std=math.sqrt(cfg.noise_variance)
-        )
-    return TensorDictSequential(actor, noise)
-
-
-def colored_noise(beta: float, steps: int, shape: tuple[int, ...]) -> torch.Tensor:
-    """(steps, *shape) Gaussian series whose power spectrum along the first axis falls as 1/f^beta
-    (0 white, 1 pink, 2 red), each scaled to unit RMS: random Fourier coefficients of amplitude
-    f^(-beta/2), the lowest frequency standing in for f = 0 (Timmer & Koenig 1995)."""
-    freqs = torch.fft.rfftfreq(steps)
-    freqs[0] = freqs[1]
-    amplitude = (freqs ** (-beta / 2)).reshape(-1, *(1,) * len(shape))
-    coeffs = torch.complex(torch.randn(len(freqs), *shape), torch.randn(len(freqs), *shape)) * amplitude
-    series = torch.fft.irfft(coeffs, n=steps, dim=0)
-    return series / series.pow(2).mean(dim=0).sqrt()
-
-
-class ColoredNoiseModule(AdditiveGaussianModule):
-    """TD3's additive exploration noise, colored (``algo.noise_beta``): each action's noise is a
-    :func:`colored_noise` series through a chunk of ``chunk_steps`` control steps, then a fresh
-    chunk; its std and the ``sigma`` multiplier (:func:`set_noise_scale`) are the Gaussian's. ``beta``
-    is a buffer, so a collector's workers take a change of it (:func:`set_noise_beta`) with the
-    policy's weights; a chunk drawn at another beta is dropped."""
-
-    def __init__(self, action_spec, std: float, beta: float, chunk_steps: int):
-        super().__init__(spec=action_spec, sigma_init=1.0, sigma_end=1.0, mean=0.0, std=std)
-        self.register_buffer("beta", torch.tensor(float(beta)))
-        self.chunk_steps = chunk_steps
-        self._chunk, self._next, self._chunk_beta = None, 0, float(beta)
-
-    def _add_noise(self, action: torch.Tensor) -> torch.Tensor:
-        beta = float(self.beta)
-        if (self._chunk is None or self._next == self.chunk_steps or self._chunk.shape[1:] != action.shape
-                or beta != self._chunk_beta):
-            self._chunk, self._next, self._chunk_beta = colored_noise(beta, self.chunk_steps, tuple(action.shape)), 0, beta
-        noise = self._chunk[self._next].to(action)
-        self._next += 1
-        return self.spec[self.action_key].project(action + noise * self.std * self.sigma)
-
-
-def set_noise_beta(explore: TensorDictSequential, beta: float) -> None:
-    """The exploration noise's spectrum from the next action on (1/f^beta): a
-    :class:`ColoredNoiseModule` only (``make_exploration``'s ``colored``)."""
-    explore.module[-1].beta.fill_(beta)
-
-
-def noise_scale(cfg: AlgoConfig, frames: int) -> float:
-    """Multiplier of the noise's standard deviation after ``frames`` steps.
-
-    The variance decays as (1 - decay)^frames (MATLAB's VarianceDecayRate, Table 9.4) and
-    never falls below ``noise_variance_min``.
-    """
-    variance = max(cfg.noise_variance * (1.0 - cfg.noise_decay) ** frames, cfg.noise_variance_min)
-    return math.sqrt(variance / cfg.noise_variance)
-
-
-def set_noise_scale(explore: TensorDictSequential, scale: float) -> None:
-    """Write the noise multiplier into TorchRL's exploration module (its ``eps``/``sigma`` buffer);
-    SAC's exploration is its own entropy-tuned spread, left alone."""
-    noise = explore.module[-1]
-    if isinstance(noise, OrnsteinUhlenbeckProcessModule):
-        noise.eps.fill_(scale)
-    elif isinstance(noise, AdditiveGaussianModule):
-        noise.sigma.fill_(scale)
 
 
 class Learner:
@@ -247,6 +198,11 @@ class Learner:
       learner has the mirror maps (``mirror``: observation index and sign, action index and sign);
     * targets: theta' <- theta' + tau (theta - theta') (TorchRL's ``SoftUpdate``).
 
+    With ``algo.crossq`` (:class:`CrossQCritic`) there are no targets: a' = pi(s') from the actor
+    itself, and Q_k(s, a) and Q_k(s', a') come from one forward pass of the two batches stacked, y
+    from the latter with its gradient stopped; the actor's Q comes from the critics in eval mode
+    (their running statistics).
+
     An algorithm is a subclass that overrides :meth:`next_action`, :meth:`actor_loss` or
     :meth:`after_actor_step` (``LEARNERS`` maps ``algo.name`` to it).
     """
@@ -259,17 +215,19 @@ class Learner:
         self.mirror = None if mirror is None else tuple(torch.as_tensor(m) for m in mirror)
         self.actor = make_actor(cfg, obs_size, action_size)  # a TensorDictModule, for the collector
         self.critics = nn.ModuleList(make_critic(cfg, obs_size, action_size) for _ in range(n_critics(cfg)))
-        self.actor_target = copy.deepcopy(self.actor.module).requires_grad_(False)  # unused by SAC
-        self.critic_targets = copy.deepcopy(self.critics).requires_grad_(False)
+        self.actor_target = copy.deepcopy(self.actor.module).requires_grad_(False)  # unused by SAC and CrossQ
+        self.critic_targets = nn.ModuleList() if cfg.crossq else copy.deepcopy(self.critics).requires_grad_(False)
+        self.bootstrap = self.actor.module if cfg.crossq else self.actor_target  # the pi' of a' = pi'(s')
         self.explore = make_exploration(cfg, self.actor, action_spec, colored_noise)
         self.low, self.high = action_spec.space.low, action_spec.space.high
         self.critic_params = list(self.critics.parameters())
         self.actor_params = list(self.actor.module.parameters())
         # fused: one kernel per step for all parameters, ~15 % faster updates on 2 CPU cores
-        self.critic_opt = torch.optim.Adam(self.critic_params, lr=cfg.critic_lr, fused=True)
-        self.actor_opt = torch.optim.Adam(self.actor_params, lr=cfg.actor_lr, fused=True)
-        self._pairs = [(list(self.critic_targets.parameters()), self.critic_params)]
-        if self.follows_actor_target:
+        betas = (cfg.adam_beta1, 0.999)
+        self.critic_opt = torch.optim.Adam(self.critic_params, lr=cfg.critic_lr, betas=betas, fused=True)
+        self.actor_opt = torch.optim.Adam(self.actor_params, lr=cfg.actor_lr, betas=betas, fused=True)
+        self._pairs = [] if cfg.crossq else [(list(self.critic_targets.parameters()), self.critic_params)]
+        if self.follows_actor_target and not cfg.crossq:
             self._pairs.append((list(self.actor_target.parameters()), self.actor_params))
         self._distance = {"l2": nn.functional.mse_loss, "l1": nn.functional.l1_loss,
                           "smooth_l1": nn.functional.smooth_l1_loss}[cfg.loss_function]
@@ -281,9 +239,11 @@ class Learner:
 
     def next_action(self, next_obs, action) -> tuple[torch.Tensor, torch.Tensor | float]:
         """The bootstrap action a' and what the target subtracts from min_k Q'_k(s', a')."""
-        return self.actor_target(next_obs), 0.0
+        return self.bootstrap(next_obs), 0.0
 
     def critic_loss(self, obs, action, reward, next_obs, terminated) -> torch.Tensor:
+        if self.cfg.crossq:
+            return self.joint_critic_loss(obs, action, reward, next_obs, terminated)
         with torch.no_grad():
             next_action, correction = self.next_action(next_obs, action)
             next_q = self.critic_targets[0](next_obs, next_action)
@@ -291,6 +251,16 @@ class Learner:
                 next_q = torch.min(next_q, target(next_obs, next_action))
             y = reward + self.cfg.gamma * (~terminated) * (next_q - correction)
         return sum(self._distance(critic(obs, action), y) for critic in self.critics)
+
+    def joint_critic_loss(self, obs, action, reward, next_obs, terminated) -> torch.Tensor:
+        """CrossQ's critic loss: Q_k(s, a) and Q_k(s', a') from one pass, no targets."""
+        with torch.no_grad():
+            next_action, correction = self.next_action(next_obs, action)
+        n = obs.shape[0]
+        qs = [critic(torch.cat([obs, next_obs]), torch.cat([action, next_action])) for critic in self.critics]
+        next_q = torch.stack([q[n:] for q in qs]).min(dim=0).values.detach()
+        y = reward + self.cfg.gamma * (~terminated) * (next_q - correction)
+        return sum(self._distance(q[:n], y) for q in qs)
 
     def actor_loss(self, obs) -> torch.Tensor:
         return -self.critics[0](obs, self.actor.module(obs)).mean()
@@ -321,11 +291,13 @@ class Learner:
         elif self.updates % self.cfg.actor_update_every == 0:
             for p in self.critic_params:  # the actor's gradient must not touch the critic
                 p.requires_grad_(False)
+            self.critics.eval()  # (CrossQ's: Q from the running statistics, which stay as they are)
             actor_loss = self.actor_loss(obs)
             if self.mirror is not None and self.cfg.mirror_loss:
                 actor_loss = actor_loss + self.cfg.mirror_loss * self.mirror_loss(obs)
             self.actor_opt.zero_grad()
             actor_loss.backward()
+            self.critics.train()
             for p in self.critic_params:
                 p.requires_grad_(True)
             nn.utils.clip_grad_norm_(self.actor_params, self.cfg.grad_clip)
@@ -352,8 +324,11 @@ class Learner:
 
     def q0(self, observations: torch.Tensor) -> list[float]:
         """Q(s, pi(s)) of each observation: the thesis' Q0 curve at episode starts (Fig. 10.24)."""
+        self.critics.eval()
         with torch.no_grad():
-            return self.critics[0](observations, self.actor.module(observations)).reshape(-1).tolist()
+            q = self.critics[0](observations, self.actor.module(observations)).reshape(-1).tolist()
+        self.critics.train()
+        return q
 
     def policy_state(self) -> dict:
         """The deterministic policy's weights (thesis Table 9.1's actor): what an agent file holds."""
@@ -406,7 +381,7 @@ class TD3Learner(Learner):
     def next_action(self, next_obs, action):
         cfg = self.cfg
         noise = (torch.randn_like(action) * cfg.policy_noise).clamp(-cfg.noise_clip, cfg.noise_clip)
-        return torch.max(torch.min(self.actor_target(next_obs) + noise, self.high), self.low), 0.0
+        return torch.max(torch.min(self.bootstrap(next_obs) + noise, self.high), self.low), 0.0
 
 
 class SACLearner(Learner):
@@ -423,7 +398,7 @@ class SACLearner(Learner):
                  colored_noise: bool = False):
         super().__init__(cfg, obs_size, action_size, action_spec, mirror, colored_noise)
         self.log_alpha = torch.tensor(math.log(cfg.init_alpha), requires_grad=True)  # the temperature
-        self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=cfg.actor_lr)
+        self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=cfg.actor_lr, betas=(cfg.adam_beta1, 0.999))
         self.target_entropy = cfg.target_entropy * action_size
 
     def next_action(self, next_obs, action):

@@ -36,7 +36,7 @@ import pamrun  # noqa: F401  (registers PamWalker-v0 with Gymnasium, in worker p
 from pamrun.config import Config, ConfigError, to_object, without_hydra
 from pamrun.evaluation import board, figures
 from pamrun.evaluation.evaluator import TrainingEvaluator
-from pamrun.learning import checkpoints, networks
+from pamrun.learning import checkpoints, exploration, networks
 from pamrun.learning.curriculum import COMPUTED, FEATURES, FeatureReader, WalkCurriculum, weighed_terms
 from pamrun.runs import directory
 from pamrun.runs.directory import EVAL_FIELDS, CsvLog, EpisodeLog, RunFiles
@@ -216,12 +216,12 @@ class Run:
                 "wall_time_s": self.clock.seconds()}
 
     def set_noise(self) -> float:
-        """The exploration noise's scale at this frame count (:func:`pamrun.learning.networks.noise_scale`),
+        """The exploration noise's scale at this frame count (:func:`pamrun.learning.exploration.noise_scale`),
         and its spectrum at this stage (``train.walk_noise_beta`` from the walking stage on)."""
-        scale = networks.noise_scale(self.cfg.algo, self.frames)
-        networks.set_noise_scale(self.learner.explore, scale)
+        scale = exploration.noise_scale(self.cfg.algo, self.frames)
+        exploration.set_noise_scale(self.learner.explore, scale)
         if self.cfg.train.walk_noise_beta is not None:
-            networks.set_noise_beta(self.learner.explore, self.noise_beta())
+            exploration.set_noise_beta(self.learner.explore, self.noise_beta())
         return math.sqrt(self.cfg.algo.noise_variance) * scale
 
     def noise_beta(self) -> float:
