@@ -160,7 +160,7 @@ def stacked_matches() -> float:
     nxt = batch["next"]
     args = (batch["observation"], batch["action"], nxt["reward"], nxt["observation"], nxt["terminated"])
     torch.manual_seed(1)
-    ours = float(shipped.critic_loss(*args))
+    ours = float(shipped.critic_loss(*args).detach())
     torch.manual_seed(1)
     with torch.no_grad():
         next_action, _ = stacked.next_action(args[3], args[1])
