@@ -20,9 +20,6 @@ the ratios of the medians, and appends them to benchmarks/results/agent_update.j
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import platform
 import statistics
 import time
 from pathlib import Path
@@ -35,6 +32,8 @@ from train_throughput import (  # the sibling benchmark's batch and summary
     OBS,
     _batch,
     _spec,
+    machine_stamp,
+    report,
     spread,
 )
 
@@ -142,9 +141,7 @@ def main() -> None:
             for key, value in zip(keys, measure()):
                 runs.setdefault(key, []).append(value)
                 print(f"{key:>40}: {value:.1f}", flush=True)
-    row = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "machine": platform.node(), "cpu_count": os.cpu_count(),
-           "processor": platform.processor() or platform.machine(), "torch": torch.__version__,
-           "torchrl": torchrl.__version__, "torch_threads": torch.get_num_threads(), "batch": BATCH,
+    row = {**machine_stamp(), "torchrl": torchrl.__version__, "batch": BATCH,
            "hidden_sizes": AlgoConfig().hidden_sizes, "updates": args.updates, **{k: spread(v) for k, v in runs.items()}}
     med = {k: statistics.median(v) for k, v in runs.items()}
     row["ratios_of_medians"] = {
@@ -157,15 +154,8 @@ def main() -> None:
     row["soft_update_share_of_td3_update"] = round(med["td3_update_per_s"] / med["soft_update_per_s"] / 2, 4)
     row["soft_update_equality"] = soft_update_equality(args.updates)
     row["sac_sample_equality"] = sample_equality()
-    print(f"{'measure':>40}  {'min':>8} {'median':>8} {'max':>8}")
-    for key in runs:
-        print(f"{key:>40}  {row[key]['min']:8.1f} {row[key]['median']:8.1f} {row[key]['max']:8.1f}")
-    for key in ("ratios_of_medians", "soft_update_us", "soft_update_share_of_td3_update", "soft_update_equality",
-                "sac_sample_equality"):
-        print(f"{key}: {row[key]}")
-    RESULTS.parent.mkdir(exist_ok=True)
-    with RESULTS.open("a") as fh:
-        fh.write(json.dumps(row) + "\n")
+    report(row, runs, RESULTS, extra=("soft_update_us", "soft_update_share_of_td3_update", "soft_update_equality",
+                                      "sac_sample_equality"))
 
 
 if __name__ == "__main__":

@@ -23,6 +23,7 @@ import argparse
 import copy
 import json
 import os
+import platform
 import statistics
 import subprocess
 import sys
@@ -171,6 +172,27 @@ def spread(values: list[float]) -> dict:
             "n": len(values)}
 
 
+def machine_stamp() -> dict:
+    """The head of a results row: when, on which machine, with how many cores and torch threads."""
+    return {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "machine": platform.node(), "cpu_count": os.cpu_count(),
+            "processor": platform.processor() or platform.machine(), "torch": torch.__version__,
+            "torch_threads": torch.get_num_threads()}
+
+
+def report(row: dict, runs: dict[str, list[float]], out: Path, extra: tuple[str, ...] = ()) -> None:
+    """Print each measure's min, median and max (``row[key]``, :func:`spread`), then ``row``'s
+    ratios of medians and its ``extra`` keys, and append ``row`` to the JSON-lines file ``out``."""
+    width = max(map(len, runs)) + 2
+    print(f"{'measure':>{width}}  {'min':>8} {'median':>8} {'max':>8}")
+    for key in runs:
+        print(f"{key:>{width}}  {row[key]['min']:8.1f} {row[key]['median']:8.1f} {row[key]['max']:8.1f}")
+    for key in ("ratios_of_medians", *extra):
+        print(f"{key}: {row[key]}")
+    out.parent.mkdir(exist_ok=True)
+    with out.open("a") as fh:
+        fh.write(json.dumps(row) + "\n")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=3000)
@@ -194,8 +216,7 @@ def main() -> None:
         for key, measure in measures.items():
             runs.setdefault(key, []).append(measure())
             print(f"{key:>34}: {runs[key][-1]:.1f}", flush=True)
-    row = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "cpu_count": os.cpu_count(),
-           "torch_threads": torch.get_num_threads(), **{k: spread(v) for k, v in runs.items()}}
+    row = {**machine_stamp(), **{k: spread(v) for k, v in runs.items()}}
     med = {k: row[k]["median"] for k in runs}
     ratios = {"pamrun_update / plain_pytorch_update": med["pamrun_td3_update_per_s"] / med["plain_pytorch_td3_update_per_s"],
               "torchrl_update / plain_pytorch_update": med["torchrl_td3_update_per_s"] / med["plain_pytorch_td3_update_per_s"]}
@@ -204,15 +225,7 @@ def main() -> None:
         ratios["pamrun_async_loop / sb3_loop"] = (med["pamrun_td3_async_loop_frames_per_s"]
                                                   / med["sb3_td3_loop_frames_per_s"])
     row["ratios_of_medians"] = {k: round(v, 3) for k, v in ratios.items()}
-    print(f"{'measure':>34}  {'min':>7} {'median':>7} {'max':>7}")
-    for key in runs:
-        print(f"{key:>34}  {row[key]['min']:7.1f} {row[key]['median']:7.1f} {row[key]['max']:7.1f}")
-    for key, value in row["ratios_of_medians"].items():
-        print(f"{key:>40}: {value:.2f}")
-    out = Path(__file__).parent / "results" / "train_throughput.jsonl"
-    out.parent.mkdir(exist_ok=True)
-    with out.open("a") as fh:
-        fh.write(json.dumps(row) + "\n")
+    report(row, runs, Path(__file__).parent / "results" / "train_throughput.jsonl")
 
 
 if __name__ == "__main__":

@@ -30,10 +30,7 @@ from __future__ import annotations
 
 import argparse
 import copy
-import json
 import math
-import os
-import platform
 import statistics
 import time
 from pathlib import Path
@@ -42,7 +39,7 @@ import torch
 from tensordict import TensorDict
 from torch import nn
 from torchrl.data import Bounded
-from train_throughput import spread  # the sibling benchmark's summary
+from train_throughput import machine_stamp, report, spread  # the sibling benchmark's summary
 
 from pamrun.config import AlgoConfig
 from pamrun.learning import networks
@@ -185,21 +182,12 @@ def main() -> None:
             runs.setdefault(name, []).append(lever)
             runs.setdefault(f"{name}_shipped", []).append(shipped)
             print(f"{name:>16}: {lever:7.1f}   shipped {shipped:7.1f}   x{lever / shipped:.3f}", flush=True)
-    row = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "machine": platform.node(), "cpu_count": os.cpu_count(),
-           "processor": platform.processor() or platform.machine(), "torch": torch.__version__,
-           "torch_threads": torch.get_num_threads(), "obs": OBS, "act": ACT, "updates": args.updates,
+    row = {**machine_stamp(), "obs": OBS, "act": ACT, "updates": args.updates,
            **{k: spread(v) for k, v in runs.items()},
            "ratios_of_medians": {name: round(statistics.median(runs[name]) / statistics.median(runs[f"{name}_shipped"]), 3)
                                  for name in args.levers},
            "stacked_loss_rel_diff": stacked_matches()}
-    print(f"{'measure':>24}  {'min':>8} {'median':>8} {'max':>8}")
-    for key in runs:
-        print(f"{key:>24}  {row[key]['min']:8.1f} {row[key]['median']:8.1f} {row[key]['max']:8.1f}")
-    print(f"ratios_of_medians: {row['ratios_of_medians']}")
-    print(f"stacked critics' loss against the shipped, relative difference: {row['stacked_loss_rel_diff']:.2e}")
-    RESULTS.parent.mkdir(exist_ok=True)
-    with RESULTS.open("a") as fh:
-        fh.write(json.dumps(row) + "\n")
+    report(row, runs, RESULTS, extra=("stacked_loss_rel_diff",))
 
 
 if __name__ == "__main__":
