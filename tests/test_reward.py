@@ -17,7 +17,15 @@ from pamrun.physics.actuation import muscle_counts
 from pamrun.physics.body import JOINTS
 from pamrun.task import reward as reward_mod
 from pamrun.task.env import PamWalkerEnv
-from pamrun.task.measures import KNEES, at_stops, ground_point_shift_m, sole_tilt_rad, stop_bounds, stop_share
+from pamrun.task.measures import (
+    KNEES,
+    at_stops,
+    ground_point_shift_m,
+    sole_tilt_rad,
+    stop_bounds,
+    stop_nearness,
+    stop_share,
+)
 from pamrun.task.reward import REWARD_KEYS, TERMS, Reward, check_terms
 from tests.test_train import TINY, train_here
 
@@ -216,6 +224,45 @@ def test_level_term_charges_a_swinging_foot_rolled_at_its_ankle():
         assert info["reward_terms"]["klevel"] == 2.0 * info["reward_unweighted"]["klevel"]
         paid.append(info["reward_unweighted"]["klevel"])
     assert paid[0] == pytest.approx(0.0, abs=0.01) and paid[1] < -0.02
+    env.close()
+
+
+def test_stop_nearness_charges_each_joint_from_its_band_on():
+    """measures.stop_nearness on joint angles set by hand (limits +-0.5 rad, band 0.2 rad): a joint on
+    its limit or past it counts 1, one 0.1 rad inside 0.25, one at the band's edge or further in 0;
+    each joint counts on its own (two at a stop: 2), and a knee counts only with its foot off the
+    ground. In a real env step, reward.knear is the nearness of the env's own limits, 10 deg."""
+    q = np.zeros(len(JOINTS))
+    assert stop_nearness(q, LIMITS, 0.2, [True, True]) == 0.0
+    ankle_roll, hip_roll = JOINTS.index("right_ankle_roll"), JOINTS.index("left_hip_roll")
+    q[ankle_roll] = -0.5
+    assert stop_nearness(q, LIMITS, 0.2, [True, True]) == pytest.approx(1.0)
+    q[ankle_roll] = -0.7
+    assert stop_nearness(q, LIMITS, 0.2, [True, True]) == pytest.approx(1.0)
+    q[hip_roll] = 0.4
+    assert stop_nearness(q, LIMITS, 0.2, [True, True]) == pytest.approx(1.25)
+    q[hip_roll] = 0.3
+    assert stop_nearness(q, LIMITS, 0.2, [True, True]) == pytest.approx(1.0)
+    q[KNEES[0]] = 0.5  # the right knee on its stop: charged only in swing
+    assert stop_nearness(q, LIMITS, 0.2, [True, True]) == pytest.approx(1.0)
+    assert stop_nearness(q, LIMITS, 0.2, [False, True]) == pytest.approx(2.0)
+    assert stop_share(q, stop_bounds(LIMITS, 0.1), [False, True]) == pytest.approx(2 / 9)  # kstop's share: thin
+
+    env = PamWalkerEnv(reward={"knear": 3.0})
+    env.reset(seed=0)
+    roll = env.qpos_addresses[ankle_roll]
+    low = env.joint_limits_rad[ankle_roll, 0]
+    for offset_deg, expected in ((0.0, 1.0), (5.0, 0.25), (12.0, 0.0)):
+        env.data.qpos[roll] = low + math.radians(offset_deg)
+        t = reward_mod.Transition(env=env, episode=None, torso=(), qpos=env.data.qpos.tolist(), action=np.zeros(1),
+                                  previous=np.zeros(1), soles_before=None, soles=None, contact_before=[True, True],
+                                  contact=[True, True], forces_n=[400.0, 400.0])
+        others = stop_nearness([env.data.qpos[a] for a in env.qpos_addresses], env.joint_limits_rad, math.radians(10),
+                               [True, True]) - expected
+        assert reward_mod.TERMS["knear"](t) == pytest.approx(-expected - others)
+        assert others == pytest.approx(0.0, abs=1e-9)  # the standing pose is clear of every band
+    _, _, _, _, info = env.step(np.zeros(10))
+    assert info["reward_terms"]["knear"] == pytest.approx(3.0 * info["reward_unweighted"]["knear"])
     env.close()
 
 

@@ -27,7 +27,7 @@ class RewardConfig:
           - kupright (roll^2 + pitch^2) + ktrack exp(-((Vx - v*) / sigma_track)^2)
           - kdouble w_both [a foot up] + kplace (1 - path miss) + kknee (1 - knee miss)
           + kpush (1 - push-off miss) + khip (1 - hip miss) - klift n_lifts
-          - ktouch n_touchdowns - klevel swing tilt (the last twenty-one: 0 in the thesis)
+          - ktouch n_touchdowns - klevel swing tilt - knear nearness to stops (the last twenty-two: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -86,6 +86,9 @@ class RewardConfig:
     # weight of the summed side-to-side tilt [rad] of the feet off the ground (kflat's, for the swinging feet):
     # a swinging foot rolled onto its edge lands on it
     klevel: float = 0.0
+    # weight of the joints' nearness to their stops, sum over the joints kstop counts of (1 - d / 10 deg)^2 within
+    # 10 deg of a limit (d the distance to it): each joint charged on its own, from before it reaches its stop
+    knear: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):

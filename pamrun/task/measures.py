@@ -10,6 +10,9 @@ import numpy as np
 from pamrun.physics.body import JOINTS, SIDES, SOLE_CORNERS
 
 STOP_MARGIN_DEG = 2.0  # a joint 'at its stop': within this of a limit (reward.kstop and the gait metrics)
+# reward.knear charges a joint from this far inside a limit on: far enough to give the policy a gradient
+# before STOP_MARGIN_DEG counts it at the stop (pamrun's choice: 5 x the margin)
+STOP_BAND_DEG = 10.0
 # A foot carrying less than this share of the body weight is taken as off the ground.
 CONTACT_WEIGHT_SHARE = 0.05
 KNEES = [JOINTS.index(f"{side}_knee") for side in SIDES]  # each leg's knee column, in foot order (right, left)
@@ -35,8 +38,24 @@ def stop_share(q, bounds: np.ndarray, contact) -> float:
     """Share of the hip and ankle joints, and of the knees of legs whose foot is off the ground,
     at a stop (``reward.kstop``'s; a knee in stance rests on its stop by design, its lock)."""
     at = at_stops(q, bounds).tolist()
-    counted = [j for j in range(len(at)) if j not in KNEES] + [k for k, down in zip(KNEES, contact) if not down]
+    counted = _counted_joints(len(at), contact)
     return sum(at[j] for j in counted) / len(counted)
+
+
+def _counted_joints(n_joints: int, contact) -> list[int]:
+    """The joints a stop measure counts: the hips and ankles, and the knees of legs whose foot is off
+    the ground (a knee in stance rests on its extension stop by design, its lock)."""
+    return [j for j in range(n_joints) if j not in KNEES] + [k for k, down in zip(KNEES, contact) if not down]
+
+
+def stop_nearness(q, limits_rad, band_rad: float, contact) -> float:
+    """Sum over the joints :func:`stop_share` counts of (1 - d / band)^2 for d < band, d [rad] the
+    distance from q to the nearer limit (1 on or past it, 0 from ``band_rad`` inside on): each joint
+    charged on its own (``reward.knear``'s), not as a share of ten."""
+    q, limits = np.asarray(q, float), np.asarray(limits_rad, float)
+    d = np.minimum(q - limits[:, 0], limits[:, 1] - q)
+    near = np.clip(1.0 - d / band_rad, 0.0, 1.0) ** 2
+    return float(near[_counted_joints(len(q), contact)].sum())
 
 
 def ground_point_shift_m(before: np.ndarray, after: np.ndarray) -> np.ndarray:

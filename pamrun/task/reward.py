@@ -21,7 +21,14 @@ import numpy as np
 
 from pamrun.config import RewardConfig
 from pamrun.task import clock
-from pamrun.task.measures import ground_point_shift_m, sole_tilt_rad, step_length, stop_share
+from pamrun.task.measures import (
+    STOP_BAND_DEG,
+    ground_point_shift_m,
+    sole_tilt_rad,
+    step_length,
+    stop_nearness,
+    stop_share,
+)
 
 REWARD_KEYS = tuple(f.name for f in fields(RewardConfig))  # the weights, in the summation order
 
@@ -98,6 +105,14 @@ def fall(t: Transition) -> float:
 def joint_stops(t: Transition) -> float:
     q = [t.qpos[adr] for adr in t.env.qpos_addresses]
     return -stop_share(q, t.env.stop_bounds, t.contact)
+
+
+@term("knear")
+def near_stops(t: Transition) -> float:
+    """Minus each counted joint's nearness to its stop, summed: (1 - d / 10 deg)^2 within 10 deg of a
+    limit (``measures.stop_nearness``). One ankle roll held at its stop costs 1 a step (kstop: 0.1)."""
+    q = [t.qpos[adr] for adr in t.env.qpos_addresses]
+    return -stop_nearness(q, t.env.joint_limits_rad, math.radians(STOP_BAND_DEG), t.contact)
 
 
 @term("kspeed")
