@@ -251,7 +251,7 @@ def test_stop_nearness_charges_each_joint_from_its_band_on():
     env = PamWalkerEnv(reward={"knear": 3.0})
     env.reset(seed=0)
     roll = env.qpos_addresses[ankle_roll]
-    low = env.joint_limits_rad[ankle_roll, 0]
+    low = env.joint_limits_rad[ankle_roll][0]
     for offset_deg, expected in ((0.0, 1.0), (5.0, 0.25), (12.0, 0.0)):
         env.data.qpos[roll] = low + math.radians(offset_deg)
         t = reward_mod.Transition(env=env, episode=None, torso=(), qpos=env.data.qpos.tolist(), action=np.zeros(1),

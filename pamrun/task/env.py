@@ -246,7 +246,8 @@ class PamWalkerEnv(gym.Env):
         self.mass_kg = float(m.body_subtreemass[0])  # the whole robot
         self.weight_n = float(m.body_subtreemass[0] * -m.opt.gravity[2])
         self.contact_n = CONTACT_WEIGHT_SHARE * self.weight_n  # a foot carrying more is on the ground
-        self.joint_limits_rad = np.asarray(joint_limits_rad(self.body_cfg), float)  # (10, 2), JOINTS order
+        # [low, high] of each joint in JOINTS order, as floats (reward.knear's per-step sum reads them)
+        self.joint_limits_rad = np.asarray(joint_limits_rad(self.body_cfg), float).tolist()
         self.stop_bounds = stop_bounds(self.joint_limits_rad, math.radians(STOP_MARGIN_DEG))
         key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "stand")
         self._qpos0 = m.key_qpos[key].copy() if key >= 0 else m.qpos0.copy()

@@ -31,6 +31,7 @@ from pamrun.task.measures import (
 )
 
 REWARD_KEYS = tuple(f.name for f in fields(RewardConfig))  # the weights, in the summation order
+_STOP_BAND_RAD = math.radians(STOP_BAND_DEG)
 
 
 @dataclass(slots=True)
@@ -112,7 +113,7 @@ def near_stops(t: Transition) -> float:
     """Minus each counted joint's nearness to its stop, summed: (1 - d / 10 deg)^2 within 10 deg of a
     limit (``measures.stop_nearness``). One ankle roll held at its stop costs 1 a step (kstop: 0.1)."""
     q = [t.qpos[adr] for adr in t.env.qpos_addresses]
-    return -stop_nearness(q, t.env.joint_limits_rad, math.radians(STOP_BAND_DEG), t.contact)
+    return -stop_nearness(q, t.env.joint_limits_rad, _STOP_BAND_RAD, t.contact)
 
 
 @term("kspeed")
