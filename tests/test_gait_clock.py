@@ -25,6 +25,7 @@ from pamrun.task.clock import (
     knee_path_rad,
     push_off_path_rad,
     since_lift_off,
+    stance_hip_path_rad,
     swing_weights,
 )
 from pamrun.task.env import PamWalkerEnv
@@ -636,10 +637,51 @@ def _stopped_and_clockless(key: str, steps: int) -> tuple[list[float], float]:
     return features, feature
 
 
+def test_the_stance_hip_path_extends_the_stance_leg_behind_the_body():
+    """Through a leg's stance its hip is wanted from the touchdown flexion at touchdown, straight to the
+    extension as the other foot lands, and back to 0 at lift-off; free (None) in its swing; the left's
+    is the right's half a period later."""
+    share, flexion, extension = 0.4, math.radians(25), math.radians(15)
+    lift_off = 0.25 - share / 2
+    stance = [stance_hip_path_rad(lift_off + share + w * (1 - share), share, flexion, extension)[0]
+              for w in np.linspace(0.0, 0.999, 300)]
+    top = int(np.argmax(stance))
+    assert stance[0] == pytest.approx(-flexion) and max(stance) == pytest.approx(extension, rel=1e-2)
+    assert top / 299 == pytest.approx(0.5 / (1 - share), abs=0.01)  # the other foot lands half a period on
+    assert np.all(np.diff(stance[:top + 1]) > 0) and np.all(np.diff(stance[top:]) < 0)
+    assert stance[-1] == pytest.approx(0.0, abs=5e-3)
+    assert stance_hip_path_rad(lift_off + 0.5 * share, share, flexion, extension)[0] is None
+    for w in (0.1, 0.9):
+        at = lift_off + share + w * (1 - share)
+        assert stance_hip_path_rad(at + 0.5, share, flexion, extension)[1] == pytest.approx(
+            stance_hip_path_rad(at, share, flexion, extension)[0])
+
+
+def test_kextend_pays_the_stance_hips_on_the_clocks_stance_path():
+    """As the left foot lands, the right hip extended as asked pays 1, held at 0 (a full miss) 1/2, a
+    quarter of h_peak off 1 - 1/8; the left, just landed, is wanted at khip's touchdown flexion. Stopped
+    clock: 1; no clock: 0."""
+    env = PamWalkerEnv(env={**CLOCK, "hip_path_peak_deg": 30.0, "hip_extension_deg": 15.0}, reward={"kextend": 2.0})
+    env.reset(seed=0)
+    env.episode.phase0 = 0.05 + 0.5 + 0.4 - 1.0  # the left's touchdown, half a period after the right's
+    wanted = stance_hip_path_rad(env.episode.phase(env.env_cfg), 0.4, math.radians(25), math.radians(15))
+    assert wanted == pytest.approx((math.radians(15), -math.radians(25)))
+    assert _posed(env, "kextend", env.hip_addresses, list(wanted)) == pytest.approx(1.0)
+    assert _posed(env, "kextend", env.hip_addresses, [0.0, wanted[1]]) == pytest.approx(0.5)
+    assert _posed(env, "kextend", env.hip_addresses, [wanted[0] - math.radians(7.5), wanted[1]]) == pytest.approx(
+        1.0 - 0.5 * 0.25)
+    *_, info = env.step(np.zeros(10))
+    assert info["reward_terms"]["kextend"] == pytest.approx(2.0 * info["reward_unweighted"]["kextend"])
+    env.close()
+    stopped, plain = _stopped_and_clockless("kextend", 8)
+    assert stopped == [1.0] * 8 and plain == 0.0
+
+
 @pytest.mark.parametrize("key, bad", [("knee_path_peak_deg", 0.0), ("knee_path_peak_deg", -10.0),
                                       ("knee_path_peak_deg", 150.0), ("push_off_peak_deg", 0.0),
                                       ("push_off_peak_deg", -5.0), ("push_off_peak_deg", 60.0),
-                                      ("hip_path_peak_deg", 0.0), ("hip_path_peak_deg", 50.0)])
+                                      ("hip_path_peak_deg", 0.0), ("hip_path_peak_deg", 50.0),
+                                      ("hip_extension_deg", -5.0), ("hip_extension_deg", 50.0)])
 def test_bad_path_peak_fails_naming_the_key(key, bad):
     with pytest.raises(ConfigError, match=key):
         PamWalkerEnv(env={**CLOCK, key: bad})

@@ -27,7 +27,8 @@ class RewardConfig:
           - kupright (roll^2 + pitch^2) + ktrack exp(-((Vx - v*) / sigma_track)^2)
           - kdouble w_both [a foot up] + kplace (1 - path miss) + kknee (1 - knee miss)
           + kpush (1 - push-off miss) + khip (1 - hip miss) - klift n_lifts
-          - ktouch n_touchdowns - klevel swing tilt - knear nearness to stops (the last twenty-two: 0 in the thesis)
+          - ktouch n_touchdowns - klevel swing tilt - knear nearness to stops
+          + kextend (1 - stance hip miss) (the last twenty-three: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -89,6 +90,10 @@ class RewardConfig:
     # weight of the joints' nearness to their stops, sum over the joints kstop counts of (1 - d / 10 deg)^2 within
     # 10 deg of a limit (d the distance to it): each joint charged on its own, from before it reaches its stop
     knear: float = 0.0
+    # weight of the stance hips following the gait clock's stance hip path, 1 - (1/2) sum_stance min(((h - h*) / (h_peak / 2))^2, 1):
+    # h* from khip's touchdown flexion (5/6 h_peak) straight to an extension env.hip_extension_deg x L* / env.step_length_m
+    # as the other foot lands, and back to 0 at lift-off; a swinging hip free (and while the clock stands still); 0 without a clock
+    kextend: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -159,6 +164,9 @@ class EnvConfig:
     # Hip flexion [deg] reward.khip wants of a swinging leg at its most, at env.step_length_m (scaled by the
     # episode's step length): about 30 deg in human walking (Winter 2009; Perry, Gait Analysis, 1992)
     hip_path_peak_deg: float = 30.0
+    # Hip extension [deg] reward.kextend wants of a stance leg at its most, as the other foot lands, at
+    # env.step_length_m (scaled as hip_path_peak_deg): 10-20 deg in human walking (Perry, Gait Analysis, 1992)
+    hip_extension_deg: float = 15.0
     # The clock's period and reward.kstep's step length follow the episode's commanded speed v*,
     # each as its square root, so v* = 2 L* / T at every v* (pamrun's choice, after human walking;
     # the rule: pamrun.task.env, "Gait clock", gait_at_speed); at v* = 0 the clock stops, both feet asked down
@@ -191,6 +199,8 @@ class EnvConfig:
                  f"must lie in (0, 45], got {self.push_off_peak_deg}")
         _require(0 < self.hip_path_peak_deg <= 45, "hip_path_peak_deg",
                  f"must lie in (0, 45], got {self.hip_path_peak_deg}")
+        _require(0 <= self.hip_extension_deg <= 45, "hip_extension_deg",
+                 f"must lie in [0, 45], got {self.hip_extension_deg}")
         for name in ("swing_clearance_m", "swing_knee_deg", "stance_knee_deg"):
             _non_negative(self, name)
             _require(not getattr(self, name) or self.gait_period_s > 0, name,

@@ -124,6 +124,28 @@ def hip_path_rad(phase: float, swing_share: float, peak_rad: float, scale: float
     return path[0], path[1]
 
 
+
+# The human hip through the stance (hip extension +): flexed about 25 deg at heel strike, extending
+# steadily to its most, 10-20 deg, as the other foot lands (50 % of the gait cycle; Perry, Gait Analysis,
+# 1992: 10 deg true, 20 deg apparent hyperextension in terminal stance; Winter 2009, ch. 4), and back near
+# 0 at toe-off (62 %), where the swing's path (hip_path_rad) starts.
+def stance_hip_path_rad(phase: float, swing_share: float, flexion_rad: float,
+                        extension_rad: float) -> tuple[float | None, float | None]:
+    """The hip pitch [rad] (extension +) the clock wants of the right and the left leg at this phase, or
+    None where it wants none: through its stance, from ``-flexion_rad`` at touchdown, straight to
+    ``+extension_rad`` as the other foot lands half a period later, and straight back to 0 at lift-off
+    (at ``swing_share`` >= 0.5, no double support: along the first line to lift-off); free through its swing."""
+    path = []
+    for foot in (0, 1):
+        s = since_lift_off(phase, foot, swing_share)
+        if s < swing_share:
+            path.append(None)
+        elif s < swing_share + 0.5:
+            path.append(-flexion_rad + (flexion_rad + extension_rad) * (s - swing_share) / 0.5)
+        else:
+            path.append(extension_rad * (1.0 - s) / (0.5 - swing_share))
+    return path[0], path[1]
+
 # The human ankle's push-off: from its most dorsiflexed (about 10 deg, at ~48 % of the gait cycle) it
 # plantarflexes to about 20 deg at toe-off (~62 %) and is back near neutral by ~76 % (Winter, Biomechanics
 # and Motor Control of Human Movement, 4th ed. 2009, ch. 4): about 0.14 of the period each way.

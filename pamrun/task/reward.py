@@ -250,9 +250,31 @@ def hip_path(t: Transition) -> float:
     env, cfg = t.env, t.env.env_cfg
     if not env.gait_clock or t.episode.clock_stopped:
         return float(env.gait_clock)
-    scale = t.episode.step_length_m / cfg.step_length_m
-    peak = math.radians(cfg.hip_path_peak_deg)
+    scale, peak = _hip_scale_and_peak(t)
     wanted = clock.hip_path_rad(t.episode.phase(cfg), cfg.swing_share, peak, scale)
+    return _joint_path_pay(t.qpos, env.hip_addresses, wanted, 0.5 * peak * scale)
+
+
+def _hip_scale_and_peak(t: Transition) -> tuple[float, float]:
+    """The episode's step length over ``env.step_length_m``, and ``env.hip_path_peak_deg`` [rad]: the hip paths' scales."""
+    cfg = t.env.env_cfg
+    return t.episode.step_length_m / cfg.step_length_m, math.radians(cfg.hip_path_peak_deg)
+
+
+@term("kextend")
+def stance_hip_path(t: Transition) -> float:
+    """1 - the stance hips' mean squared miss of the clock's stance hip path (pamrun.task.clock.stance_hip_path_rad:
+    from khip's touchdown flexion, 5/6 of its peak, extending to ``env.hip_extension_deg`` x L*/``env.step_length_m``
+    as the other foot lands, and back to 0 at lift-off), in units of half khip's peak, each capped at 1; a hip in
+    swing misses nothing (0 without a clock; 1 while it stands still). A stance hip that stops extending under the
+    body leaves the trailing leg there: the step is short however far the swinging foot reaches. A pay, as khip's."""
+    env, cfg = t.env, t.env.env_cfg
+    if not env.gait_clock or t.episode.clock_stopped:
+        return float(env.gait_clock)
+    scale, peak = _hip_scale_and_peak(t)
+    wanted = clock.stance_hip_path_rad(t.episode.phase(cfg), cfg.swing_share,
+                                       scale * peak * clock.HIP_TOUCHDOWN_SHARE_OF_PEAK,
+                                       scale * math.radians(cfg.hip_extension_deg))
     return _joint_path_pay(t.qpos, env.hip_addresses, wanted, 0.5 * peak * scale)
 
 
