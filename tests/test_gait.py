@@ -497,6 +497,27 @@ def test_knee_at_mid_stance_and_its_peak_in_swing():
     assert episode_metrics(steps, spec())["knee_midstance_deg"] == pytest.approx(math.degrees(0.5) - 3.0, abs=1e-9)
 
 
+def test_stance_hip_extension_is_each_stances_largest_hip_pitch():
+    """Each stance's hip extends from -25 deg at its touchdown straight to +15 deg at its lift-off (the
+    right hip 15, the left 5 at their most): the metric is (4 x 15 + 4 x 5) / 8 = 10 over the stances
+    that begin after the first second. The swings' hips, extended 30 deg, do not count, nor does the
+    right's first stance (no touchdown) held at 40."""
+    steps = walk(210, 40, 20, 23, 0.4, 0.4)
+    down = steps["foot_force_n"] > 0
+    q = np.zeros((len(down), 10))
+    for foot, hip, top in ((0, 0, 15.0), (1, 5, 5.0)):
+        start = 0
+        for row in range(1, len(down) + 1):
+            if row == len(down) or down[row, foot] != down[start, foot]:
+                ramp = np.linspace(-25.0, top, row - start)
+                q[start:row, hip] = np.radians(ramp if down[start, foot] else np.full(row - start, 30.0))
+                start = row
+    q[:23, 0] = np.radians(40.0)
+    steps["joint_angle_rad"] = q
+    assert episode_metrics(steps, spec())["hip_extension_deg"] == pytest.approx(10.0, abs=1e-9)
+    assert math.isnan(episode_metrics(still(100), spec())["hip_extension_deg"])
+
+
 def test_knee_at_touchdown_reads_the_landing_row():
     """Each foot lands with its knee bent 30 deg in its touchdown row only, straight in the rest of
     its stance: the knee at touchdown is 30, at mid-stance 0. Bent 30 deg in the first second's

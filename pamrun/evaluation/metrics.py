@@ -83,6 +83,10 @@ Definitions (the manual of :func:`episode_metrics`):
 * **knee at touchdown**: the knee's flexion in the row a foot touches down (the step table's
   touchdowns), averaged over those after the first ``SETTLE_S`` (a human's at heel strike: about
   5 deg; a knee still bent lands its foot under the knee, short of the hip's reach).
+* **stance hip extension**: the largest hip pitch (extension +, the thigh behind the torso) in a
+  stance, in degrees, averaged over the stances of both legs that begin after the first ``SETTLE_S``
+  (a human's, walking: 10-20 deg as the other foot lands; a hip that stops extending under the body
+  leaves the trailing leg there, and the step short).
 * **cost of transport** (mechanical): sum over rows and joints of |torque x velocity| x dt,
   divided by m g d with d = x_m[-1] - x_m[0], the torso's forward distance. Each row's power
   stands for the control step that ends at it, so the rows after the first are summed (the
@@ -106,6 +110,7 @@ from pamrun.physics.body import GRAVITY, JOINTS
 from pamrun.physics.muscle import MUSCLE_INNER_DIAMETER_M, air_nl
 from pamrun.task.measures import (
     CONTACT_WEIGHT_SHARE,
+    HIP_PITCHES,
     KNEES,
     STOP_MARGIN_DEG,
     at_stops,
@@ -144,6 +149,7 @@ GAIT_METRICS = (
     "knee_midstance_deg",
     "knee_swing_peak_deg",
     "knee_touchdown_deg",
+    "hip_extension_deg",
 )
 HOP_WINDOW_S = 0.05  # two feet touching down this close together land as one (two control steps)
 SETTLE_S = 1.0  # the support shares and the knee's phases leave out the episode's first second
@@ -366,22 +372,25 @@ def knee_flexion_deg(joint_angle_rad, spec: GaitSpec) -> np.ndarray:
     return np.degrees(np.maximum(q - spec.joint_limits_rad[KNEES, 0], 0.0))
 
 
-def knee_phases_deg(steps: dict, contact: np.ndarray, spec: GaitSpec) -> tuple[float, float]:
-    """The knee's flexion [deg] at mid-stance and its peak in swing, each averaged over the complete
-    phases of both legs that begin after the first ``SETTLE_S`` (NaN without one); ``contact``: steady."""
+def leg_phases_deg(steps: dict, contact: np.ndarray, spec: GaitSpec) -> tuple[float, float, float]:
+    """The knee's flexion [deg] at mid-stance and its peak in swing, and the hip's largest extension in
+    stance [deg], each averaged over the complete phases of both legs that begin after the first
+    ``SETTLE_S`` (NaN without one); ``contact``: steady."""
     flexion = knee_flexion_deg(steps["joint_angle_rad"], spec)
+    hips = np.degrees(np.asarray(steps["joint_angle_rad"], float).reshape(-1, len(JOINTS))[:, HIP_PITCHES])
     late = np.asarray(steps["t_s"], float) > SETTLE_S + 1e-9
     rows = np.arange(len(flexion))
-    mid, peak = [], []
+    mid, peak, extension = [], [], []
     for foot in (RIGHT, LEFT):
         for down, a, b in phases(contact[: len(flexion), foot]):
             if not late[a]:
                 continue
             if down:
                 mid.append(float(np.interp(0.5 * (a + b - 1), rows, flexion[:, foot])))
+                extension.append(float(hips[a:b, foot].max()))
             else:
                 peak.append(float(flexion[a:b, foot].max()))
-    return _mean(mid), _mean(peak)
+    return _mean(mid), _mean(peak), _mean(extension)
 
 
 def gait_cycle(values, starts, points: int = 101) -> tuple[np.ndarray, np.ndarray]:
@@ -445,7 +454,7 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
     out["sole_tilt_deg"] = sole_tilt_deg(steps, contact)
     out["torso_pitch_deg"] = torso_pitch_deg(steps)
     out["double_support_share"], out["flight_share"] = support_shares(steps, contact)
-    out["knee_midstance_deg"], out["knee_swing_peak_deg"] = knee_phases_deg(steps, events, spec)
+    out["knee_midstance_deg"], out["knee_swing_peak_deg"], out["hip_extension_deg"] = leg_phases_deg(steps, events, spec)
     if table:
         flexion, t = knee_flexion_deg(steps["joint_angle_rad"], spec), np.asarray(steps["t_s"], float)
         out["knee_touchdown_deg"] = _mean([flexion[row, foot] for row, foot, _, _ in table if t[row] > SETTLE_S + 1e-9])
