@@ -497,7 +497,7 @@ def test_knee_at_mid_stance_and_its_peak_in_swing():
     assert episode_metrics(steps, spec())["knee_midstance_deg"] == pytest.approx(math.degrees(0.5) - 3.0, abs=1e-9)
 
 
-def test_stance_hip_extension_is_each_stances_largest_hip_pitch():
+def test_stance_hip_extension_and_hip_at_touchdown():
     """Each stance's hip extends from -25 deg at its touchdown straight to +15 deg at its lift-off (the
     right hip 15, the left 5 at their most): the metric is (4 x 15 + 4 x 5) / 8 = 10 over the stances
     that begin after the first second. The swings' hips, extended 30 deg, do not count, nor does the
@@ -514,7 +514,9 @@ def test_stance_hip_extension_is_each_stances_largest_hip_pitch():
                 start = row
     q[:23, 0] = np.radians(40.0)
     steps["joint_angle_rad"] = q
-    assert episode_metrics(steps, spec())["hip_extension_deg"] == pytest.approx(10.0, abs=1e-9)
+    m = episode_metrics(steps, spec())
+    assert m["hip_extension_deg"] == pytest.approx(10.0, abs=1e-9)
+    assert m["hip_touchdown_deg"] == pytest.approx(25.0, abs=1e-9)  # each landing row: -25 deg of pitch, 25 of flexion
     assert math.isnan(episode_metrics(still(100), spec())["hip_extension_deg"])
 
 

@@ -87,6 +87,9 @@ Definitions (the manual of :func:`episode_metrics`):
   stance, in degrees, averaged over the stances of both legs that begin after the first ``SETTLE_S``
   (a human's, walking: 10-20 deg as the other foot lands; a hip that stops extending under the body
   leaves the trailing leg there, and the step short).
+* **hip at touchdown**: the hip's flexion (minus its pitch: + the thigh ahead of the torso) in the
+  row a foot touches down, in degrees, averaged over the touchdowns after the first ``SETTLE_S`` (a
+  human's at heel strike: about 25 deg; near 0, the foot lands under the hip and the step is short).
 * **cost of transport** (mechanical): sum over rows and joints of |torque x velocity| x dt,
   divided by m g d with d = x_m[-1] - x_m[0], the torso's forward distance. Each row's power
   stands for the control step that ends at it, so the rows after the first are summed (the
@@ -150,6 +153,7 @@ GAIT_METRICS = (
     "knee_swing_peak_deg",
     "knee_touchdown_deg",
     "hip_extension_deg",
+    "hip_touchdown_deg",
 )
 HOP_WINDOW_S = 0.05  # two feet touching down this close together land as one (two control steps)
 SETTLE_S = 1.0  # the support shares and the knee's phases leave out the episode's first second
@@ -393,6 +397,15 @@ def leg_phases_deg(steps: dict, contact: np.ndarray, spec: GaitSpec) -> tuple[fl
     return _mean(mid), _mean(peak), _mean(extension)
 
 
+def touchdown_flexions_deg(steps: dict, table: list, spec: GaitSpec) -> tuple[float, float]:
+    """The knee's flexion and the hip's (minus its pitch) [deg] in the rows of the step table's touchdowns
+    after the first ``SETTLE_S``, each averaged (NaN without one)."""
+    flexion, t = knee_flexion_deg(steps["joint_angle_rad"], spec), np.asarray(steps["t_s"], float)
+    hips = -np.degrees(np.asarray(steps["joint_angle_rad"], float).reshape(-1, len(JOINTS))[:, HIP_PITCHES])
+    landings = [(row, foot) for row, foot, _, _ in table if t[row] > SETTLE_S + 1e-9]
+    return _mean([flexion[row, foot] for row, foot in landings]), _mean([hips[row, foot] for row, foot in landings])
+
+
 def gait_cycle(values, starts, points: int = 101) -> tuple[np.ndarray, np.ndarray]:
     """Values over the gait cycle: each stride (row ``starts[k]`` to ``starts[k + 1]``)
     resampled linearly onto 0-100 % in ``points`` points.
@@ -455,9 +468,7 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
     out["torso_pitch_deg"] = torso_pitch_deg(steps)
     out["double_support_share"], out["flight_share"] = support_shares(steps, contact)
     out["knee_midstance_deg"], out["knee_swing_peak_deg"], out["hip_extension_deg"] = leg_phases_deg(steps, events, spec)
-    if table:
-        flexion, t = knee_flexion_deg(steps["joint_angle_rad"], spec), np.asarray(steps["t_s"], float)
-        out["knee_touchdown_deg"] = _mean([flexion[row, foot] for row, foot, _, _ in table if t[row] > SETTLE_S + 1e-9])
+    out["knee_touchdown_deg"], out["hip_touchdown_deg"] = touchdown_flexions_deg(steps, table, spec)
 
     distance = float(x[-1] - x[0])
     power = np.abs(np.asarray(steps["joint_torque_nm"], float) * np.asarray(steps["joint_velocity_rad_s"], float))
