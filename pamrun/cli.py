@@ -153,6 +153,7 @@ def run_hydra_app(name: str, args: list[str]) -> None:
             args = [*args, f"hydra.run.dir={folder[-1]}", "hydra.output_subdir=null", "hydra/job_logging=stdout"]
     # argparse takes one run of overrides: flags (and their values) first, then every key=value.
     overrides = [a for a in args if "=" in a and not a.startswith("-")]
+    check_no_empty_dicts(overrides)
     flags = [a for a in args if a not in overrides]
     sys.argv = [f"pamrun {name}", *flags, f"hydra.job.name={job_name}", *overrides]
     config_name = CONFIG_NAMES.get(name, "config")
@@ -174,6 +175,17 @@ def sweep_args(args: list[str]) -> list[str]:
     # Job folders are named by the swept overrides only (the rest is the same for all jobs).
     fixed = swept_keys(args)[1] + list(RUNTIME_KEYS)
     return [*args, f"hydra.job.config.override_dirname.exclude_keys=[{','.join(fixed)}]"]
+
+
+def check_no_empty_dicts(overrides: list[str]) -> None:
+    """``key={}`` changes nothing (Hydra merges a dict given on the command line into the preset's), so
+    it fails, naming the key, rather than leave a preset's entries in place unsaid."""
+    for override in overrides:
+        key, _, value = override.partition("=")
+        if value.replace(" ", "") == "{}":
+            raise SystemExit(f"pamrun: invalid configuration: {key.lstrip('+~')}={{}} would change nothing: "
+                             f"Hydra merges a dict given on the command line into the preset's; "
+                             f"set its entries one by one ({key.lstrip('+~')}.<name>=<value>)")
 
 
 def check_group_options(args: list[str]) -> None:

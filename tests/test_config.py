@@ -89,6 +89,15 @@ def test_cli_unknown_key_fails(tmp_path):
     assert not run_dir.exists()
 
 
+def test_cli_empty_dict_fails_naming_the_key(tmp_path):
+    """experiment=command's train.adapt_weights has entries; '{}' would leave them in place unsaid."""
+    run_dir = tmp_path / "run"
+    proc = run_pamrun("train", "experiment=command", "train.adapt_weights={}", f"hydra.run.dir={run_dir}")
+    assert proc.returncode != 0
+    assert "train.adapt_weights={} would change nothing" in proc.stderr
+    assert not run_dir.exists()
+
+
 def test_cli_unknown_command():
     proc = run_pamrun("fly")
     assert proc.returncode == 2
