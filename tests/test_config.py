@@ -81,20 +81,16 @@ def test_cli_bad_value_fails_before_the_run_dir(tmp_path):
     assert not run_dir.exists()
 
 
-def test_cli_unknown_key_fails(tmp_path):
+@pytest.mark.parametrize("args, said", [
+    (("muscle", "step", "muscle.tua_s=0.2"), "tua_s"),
+    # experiment=command's train.adapt_weights has entries: '{}' would leave them in place unsaid
+    (("train", "experiment=command", "train.adapt_weights={}"), "train.adapt_weights={} would change nothing"),
+])
+def test_cli_unknown_key_or_empty_dict_fails_naming_it(tmp_path, args, said):
     run_dir = tmp_path / "run"
-    proc = run_pamrun("muscle", "step", "muscle.tua_s=0.2", f"hydra.run.dir={run_dir}")
+    proc = run_pamrun(*args, f"hydra.run.dir={run_dir}")
     assert proc.returncode != 0
-    assert "tua_s" in proc.stderr
-    assert not run_dir.exists()
-
-
-def test_cli_empty_dict_fails_naming_the_key(tmp_path):
-    """experiment=command's train.adapt_weights has entries; '{}' would leave them in place unsaid."""
-    run_dir = tmp_path / "run"
-    proc = run_pamrun("train", "experiment=command", "train.adapt_weights={}", f"hydra.run.dir={run_dir}")
-    assert proc.returncode != 0
-    assert "train.adapt_weights={} would change nothing" in proc.stderr
+    assert said in proc.stderr
     assert not run_dir.exists()
 
 
