@@ -23,6 +23,7 @@ from pamrun.task.clock import (
     foot_wants,
     hip_path_rad,
     knee_path_rad,
+    landing_reach_m,
     push_off_path_rad,
     since_lift_off,
     stance_hip_path_rad,
@@ -675,6 +676,39 @@ def test_kextend_pays_the_stance_hips_on_the_clocks_stance_path():
     env.close()
     stopped, plain = _stopped_and_clockless("kextend", 8)
     assert stopped == [1.0] * 8 and plain == 0.0
+
+
+def _landing(env, ahead_m: tuple[float, float], before: tuple[bool, bool], after: tuple[bool, bool]) -> float:
+    """kreach's feature with each sole's centre ``ahead_m`` of the torso, its feet down ``before`` and ``after``."""
+    t = _transition(env, before, after)
+    soles = t.soles.copy()
+    for foot, ahead in enumerate(ahead_m):
+        soles[foot, :, 0] += t.torso[0] + ahead - soles[foot, :, 0].mean()
+    t.soles = soles
+    return TERMS["kreach"](t)
+
+
+def test_kreach_charges_each_landing_foots_miss_of_the_clocks_reach():
+    """R* = (1 - 0.4) x 0.4 m = 0.24 m: a foot landing there costs 0, one landing 0.04 m ahead of the
+    torso (0.2 m short) 0.2^2 / 0.4 = 0.1, two such 0.2; a foot that was down already, or lifts, costs
+    nothing. Standing still (L* = 0) a landing costs r^2 / env.step_length_m; without a clock, 0."""
+    env = PamWalkerEnv(env={**CLOCK, "step_length_m": 0.4}, reward={"kreach": 2.0})
+    env.reset(seed=0)
+    assert landing_reach_m(0.4, 0.4) == pytest.approx(0.24)
+    assert _landing(env, (0.24, -0.3), (False, True), (True, True)) == pytest.approx(0.0, abs=1e-12)
+    assert _landing(env, (0.04, -0.3), (False, True), (True, True)) == pytest.approx(-0.1)
+    assert _landing(env, (0.04, 0.04), (False, False), (True, True)) == pytest.approx(-0.2)
+    assert _landing(env, (0.04, -0.3), (True, True), (True, True)) == 0.0
+    assert _landing(env, (0.04, -0.3), (True, True), (False, True)) == 0.0
+    env.close()
+    still = PamWalkerEnv(env={**CLOCK, "step_length_m": 0.4, "gait_follows_speed": True, "target_speed_m_s": 0.0})
+    still.reset(seed=0)
+    assert _landing(still, (0.1, 0.0), (False, True), (True, True)) == pytest.approx(-0.1 ** 2 / 0.4)
+    still.close()
+    plain = PamWalkerEnv()
+    plain.reset(seed=0)
+    assert _landing(plain, (0.04, -0.3), (False, True), (True, True)) == 0.0
+    plain.close()
 
 
 @pytest.mark.parametrize("key, bad", [("knee_path_peak_deg", 0.0), ("knee_path_peak_deg", -10.0),

@@ -28,7 +28,7 @@ class RewardConfig:
           - kdouble w_both [a foot up] + kplace (1 - path miss) + kknee (1 - knee miss)
           + kpush (1 - push-off miss) + khip (1 - hip miss) - klift n_lifts
           - ktouch n_touchdowns - klevel swing tilt - knear nearness to stops
-          + kextend (1 - stance hip miss) (the last twenty-three: 0 in the thesis)
+          + kextend (1 - stance hip miss) - kreach landing reach miss (the last twenty-four: 0 in the thesis)
     """
 
     kvx: float = 1.0  # weight of the forward velocity Vx [per m/s]
@@ -94,6 +94,9 @@ class RewardConfig:
     # h* from khip's touchdown flexion (5/6 h_peak) straight to an extension env.hip_extension_deg x L* / env.step_length_m
     # as the other foot lands, and back to 0 at lift-off; a swinging hip free (and while the clock stands still); 0 without a clock
     kextend: float = 0.0
+    # weight of the landing feet's miss of the clock's landing reach, sum over touchdowns of (r - R*)^2 / L* [m]:
+    # r the sole's distance ahead of the torso, R* = (1 - env.swing_share) L* (kplace's foot path at touchdown); 0 without a clock
+    kreach: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):

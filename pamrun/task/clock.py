@@ -61,6 +61,12 @@ def near_touchdown(phase: float, foot: int, swing_share: float) -> bool:
     return abs(miss) <= TOUCHDOWN_WINDOW_SHARE
 
 
+def landing_reach_m(swing_share: float, step_length_m: float) -> float:
+    """How far ahead of the torso [m] the clock's foot path (:func:`foot_path_m`) lands a foot: E / 2 =
+    (1 - sigma) L*, half the distance the torso covers in a stance."""
+    return (1.0 - swing_share) * step_length_m
+
+
 def foot_path_m(phase: float, swing_share: float, step_length_m: float) -> tuple[float, float]:
     """Where the clock wants the right and the left foot [m], forward of the torso, at this phase:
     each foot's sole moves back at a constant rate through its stance, from +E/2 at touchdown to
@@ -68,7 +74,7 @@ def foot_path_m(phase: float, swing_share: float, step_length_m: float) -> tuple
     2 (1 - sigma) L*, the distance the torso covers in a stance at v* = 2 L* / T. At L* = 0
     (standing still) both feet are under the torso. Each foot's swing is where
     :func:`swing_weights` swings it, centred a quarter period after its clock's zero."""
-    reach = (1.0 - swing_share) * step_length_m  # E / 2
+    reach = landing_reach_m(swing_share, step_length_m)
     path = []
     for foot in (0, 1):
         psi = since_lift_off(phase, foot, swing_share)

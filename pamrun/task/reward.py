@@ -167,6 +167,22 @@ def step_miss(t: Transition) -> float:
     return -miss
 
 
+@term("kreach")
+def landing_reach(t: Transition) -> float:
+    """Minus sum over the feet touching down in the step of (r - R*)^2 / L* [m]: r the sole centre's
+    distance ahead of the torso, R* where the clock's foot path lands a foot
+    (pamrun.task.clock.landing_reach_m, (1 - swing_share) L*; at L* = 0, standing: r^2 /
+    ``env.step_length_m``); 0 without a clock. A foot that lands under the torso makes its step
+    behind the body, with the trailing leg (kstep charges the step, not where it is made)."""
+    env = t.env
+    if not env.gait_clock:
+        return 0.0
+    length = t.episode.step_length_m
+    target, scale = clock.landing_reach_m(env.env_cfg.swing_share, length), length or env.env_cfg.step_length_m
+    ahead = (t.soles[:, :, 0].mean(axis=1) - t.torso[0]).tolist()
+    return -sum((ahead[foot] - target) ** 2 / scale for foot in (0, 1) if t.contact[foot] and not t.contact_before[foot])
+
+
 @term("kgait")
 def gait_clock(t: Transition) -> float:
     """1 - the feet's miss of the gait clock (0 without a clock); on terrain a swinging foot's lift
