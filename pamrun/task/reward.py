@@ -175,12 +175,13 @@ def landing_reach(t: Transition) -> float:
     ``env.step_length_m``); 0 without a clock. A foot that lands under the torso makes its step
     behind the body, with the trailing leg (kstep charges the step, not where it is made)."""
     env = t.env
-    if not env.gait_clock:
+    landing = [foot for foot in (0, 1) if t.contact[foot] and not t.contact_before[foot]]
+    if not env.gait_clock or not landing:
         return 0.0
     length = t.episode.step_length_m
     target, scale = clock.landing_reach_m(env.env_cfg.swing_share, length), length or env.env_cfg.step_length_m
     ahead = (t.soles[:, :, 0].mean(axis=1) - t.torso[0]).tolist()
-    return -sum((ahead[foot] - target) ** 2 / scale for foot in (0, 1) if t.contact[foot] and not t.contact_before[foot])
+    return -sum((ahead[foot] - target) ** 2 / scale for foot in landing)
 
 
 @term("kgait")
@@ -282,8 +283,8 @@ def stance_hip_path(t: Transition) -> float:
     """1 - the stance hips' mean squared miss of the clock's stance hip path (pamrun.task.clock.stance_hip_path_rad:
     from khip's touchdown flexion, 5/6 of its peak, extending to ``env.hip_extension_deg`` x L*/``env.step_length_m``
     as the other foot lands, and back to 0 at lift-off), in units of half khip's peak, each capped at 1; a hip in
-    swing misses nothing (0 without a clock; 1 while it stands still). A stance hip that stops extending under the
-    body leaves the trailing leg there: the step is short however far the swinging foot reaches. A pay, as khip's."""
+    swing misses nothing (0 without a clock; 1 while it stands still). A step made by both legs: the landed leg
+    ahead of the body, the stance leg extending behind it. A pay, as khip's."""
     env, cfg = t.env, t.env.env_cfg
     if not env.gait_clock or t.episode.clock_stopped:
         return float(env.gait_clock)
