@@ -376,12 +376,17 @@ def knee_flexion_deg(joint_angle_rad, spec: GaitSpec) -> np.ndarray:
     return np.degrees(np.maximum(q - spec.joint_limits_rad[KNEES, 0], 0.0))
 
 
+def hip_pitch_deg(joint_angle_rad) -> np.ndarray:
+    """(n, 2): each leg's hip pitch [deg] per row, right and left (extension +, the thigh behind the torso)."""
+    return np.degrees(np.asarray(joint_angle_rad, float).reshape(-1, len(JOINTS))[:, HIP_PITCHES])
+
+
 def leg_phases_deg(steps: dict, contact: np.ndarray, spec: GaitSpec) -> tuple[float, float, float]:
     """The knee's flexion [deg] at mid-stance and its peak in swing, and the hip's largest extension in
     stance [deg], each averaged over the complete phases of both legs that begin after the first
     ``SETTLE_S`` (NaN without one); ``contact``: steady."""
     flexion = knee_flexion_deg(steps["joint_angle_rad"], spec)
-    hips = np.degrees(np.asarray(steps["joint_angle_rad"], float).reshape(-1, len(JOINTS))[:, HIP_PITCHES])
+    hips = hip_pitch_deg(steps["joint_angle_rad"])
     late = np.asarray(steps["t_s"], float) > SETTLE_S + 1e-9
     rows = np.arange(len(flexion))
     mid, peak, extension = [], [], []
@@ -401,7 +406,7 @@ def touchdown_flexions_deg(steps: dict, table: list, spec: GaitSpec) -> tuple[fl
     """The knee's flexion and the hip's (minus its pitch) [deg] in the rows of the step table's touchdowns
     after the first ``SETTLE_S``, each averaged (NaN without one)."""
     flexion, t = knee_flexion_deg(steps["joint_angle_rad"], spec), np.asarray(steps["t_s"], float)
-    hips = -np.degrees(np.asarray(steps["joint_angle_rad"], float).reshape(-1, len(JOINTS))[:, HIP_PITCHES])
+    hips = -hip_pitch_deg(steps["joint_angle_rad"])
     landings = [(row, foot) for row, foot, _, _ in table if t[row] > SETTLE_S + 1e-9]
     return _mean([flexion[row, foot] for row, foot in landings]), _mean([hips[row, foot] for row, foot in landings])
 

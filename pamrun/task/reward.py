@@ -167,6 +167,11 @@ def step_miss(t: Transition) -> float:
     return -miss
 
 
+def _soles_ahead_m(t: Transition) -> list[float]:
+    """Each sole centre's forward distance [m] from the torso, right and left (kplace's and kreach's r)."""
+    return (t.soles[:, :, 0].mean(axis=1) - t.torso[0]).tolist()
+
+
 @term("kreach")
 def landing_reach(t: Transition) -> float:
     """Minus sum over the feet touching down in the step of (r - R*)^2 / L* [m]: r the sole centre's
@@ -180,7 +185,7 @@ def landing_reach(t: Transition) -> float:
         return 0.0
     length = t.episode.step_length_m
     target, scale = clock.landing_reach_m(env.env_cfg.swing_share, length), length or env.env_cfg.step_length_m
-    ahead = (t.soles[:, :, 0].mean(axis=1) - t.torso[0]).tolist()
+    ahead = _soles_ahead_m(t)
     return -sum((ahead[foot] - target) ** 2 / scale for foot in landing)
 
 
@@ -232,7 +237,7 @@ def foot_placement(t: Transition) -> float:
     path = (0.0, 0.0) if stopped else clock.foot_path_m(t.episode.phase(env.env_cfg), env.env_cfg.swing_share,
                                                         t.episode.step_length_m)
     scale = 0.5 * env.env_cfg.step_length_m
-    ahead = (t.soles[:, :, 0].mean(axis=1) - t.torso[0]).tolist()
+    ahead = _soles_ahead_m(t)
     return 1.0 - 0.5 * sum(min(((a - p) / scale) ** 2, 1.0) for a, p in zip(ahead, path))
 
 
