@@ -520,6 +520,27 @@ def test_stance_hip_extension_and_hip_at_touchdown():
     assert math.isnan(episode_metrics(still(100), spec())["hip_extension_deg"])
 
 
+def test_swing_hip_peak_reads_each_swings_largest_flexion():
+    """Each swing's hip flexes on a half sine to 35 deg (right) and 25 deg (left) in its middle row and is
+    back to 0 as the foot lands: the swing peak is (4 x 35 + 4 x 25) / 8 = 30 over the swings that begin
+    after the first second, while the hip at touchdown reads 0 (the leg pulled back before it landed).
+    The first second's swings, flexed twice as far, do not count; nor do the stances, flexed 40 deg after
+    their touchdown row."""
+    steps = walk(210, 40, 20, 23, 0.4, 0.4)
+    down = steps["foot_force_n"] > 0
+    swing_flexion = bent_knees(down, stance_deg=(0.0, 0.0), swing_deg=(35.0, 25.0))[:, [2, 7]]
+    swing_flexion[:40] *= 2.0
+    q = np.zeros((len(down), 10))
+    q[:, [0, 5]] = -swing_flexion  # flexion is minus the pitch
+    after_landing = down & np.vstack([down[:1], down[:-1]])
+    q[:, [0, 5]] -= np.radians(40.0) * after_landing  # the stances flexed 40 deg past their touchdown row
+    steps["joint_angle_rad"] = q
+    m = episode_metrics(steps, spec())
+    assert m["hip_swing_peak_deg"] == pytest.approx(30.0, abs=1e-9)
+    assert m["hip_touchdown_deg"] == pytest.approx(0.0, abs=1e-9)
+    assert math.isnan(episode_metrics(still(100), spec())["hip_swing_peak_deg"])
+
+
 def test_knee_at_touchdown_reads_the_landing_row():
     """Each foot lands with its knee bent 30 deg in its touchdown row only, straight in the rest of
     its stance: the knee at touchdown is 30, at mid-stance 0. Bent 30 deg in the first second's

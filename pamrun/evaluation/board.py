@@ -49,6 +49,7 @@ GAIT_SCALARS = {
     "knee_touchdown_deg": "knee_touchdown_deg_mean",
     "hip_extension_deg": "hip_extension_deg_mean",
     "hip_touchdown_deg": "hip_touchdown_deg_mean",
+    "hip_swing_peak_deg": "hip_swing_peak_deg_mean",
     "walk_targets_met": "walk_targets_met",  # how many of the walk's targets (pamrun.evaluation.targets)
 }
 FIGURE_DPI = 60  # the gait figure at 960 x 384 pixels

@@ -90,6 +90,9 @@ Definitions (the manual of :func:`episode_metrics`):
 * **hip at touchdown**: the hip's flexion (minus its pitch: + the thigh ahead of the torso) in the
   row a foot touches down, in degrees, averaged over the touchdowns after the first ``SETTLE_S`` (a
   human's at heel strike: about 25 deg; near 0, the foot lands under the hip and the step is short).
+* **swing hip peak**: the largest hip flexion (minus its pitch) in a swing, averaged over the swings of
+  both legs that begin after the first ``SETTLE_S`` (a human's: about 30 deg, some 5 more than at heel
+  strike; far above the hip at touchdown, the leg swung ahead and was pulled back before it landed).
 * **cost of transport** (mechanical): sum over rows and joints of |torque x velocity| x dt,
   divided by m g d with d = x_m[-1] - x_m[0], the torso's forward distance. Each row's power
   stands for the control step that ends at it, so the rows after the first are summed (the
@@ -154,6 +157,7 @@ GAIT_METRICS = (
     "knee_touchdown_deg",
     "hip_extension_deg",
     "hip_touchdown_deg",
+    "hip_swing_peak_deg",
 )
 HOP_WINDOW_S = 0.05  # two feet touching down this close together land as one (two control steps)
 SETTLE_S = 1.0  # the support shares and the knee's phases leave out the episode's first second
@@ -381,15 +385,15 @@ def hip_pitch_deg(joint_angle_rad) -> np.ndarray:
     return np.degrees(np.asarray(joint_angle_rad, float).reshape(-1, len(JOINTS))[:, HIP_PITCHES])
 
 
-def leg_phases_deg(steps: dict, contact: np.ndarray, spec: GaitSpec) -> tuple[float, float, float]:
+def leg_phases_deg(steps: dict, contact: np.ndarray, spec: GaitSpec) -> tuple[float, float, float, float]:
     """The knee's flexion [deg] at mid-stance and its peak in swing, and the hip's largest extension in
-    stance [deg], each averaged over the complete phases of both legs that begin after the first
+    stance and largest flexion in swing [deg], each averaged over the complete phases of both legs that begin after the first
     ``SETTLE_S`` (NaN without one); ``contact``: steady."""
     flexion = knee_flexion_deg(steps["joint_angle_rad"], spec)
     hips = hip_pitch_deg(steps["joint_angle_rad"])
     late = np.asarray(steps["t_s"], float) > SETTLE_S + 1e-9
     rows = np.arange(len(flexion))
-    mid, peak, extension = [], [], []
+    mid, peak, extension, hip_peak = [], [], [], []
     for foot in (RIGHT, LEFT):
         for down, a, b in phases(contact[: len(flexion), foot]):
             if not late[a]:
@@ -399,7 +403,8 @@ def leg_phases_deg(steps: dict, contact: np.ndarray, spec: GaitSpec) -> tuple[fl
                 extension.append(float(hips[a:b, foot].max()))
             else:
                 peak.append(float(flexion[a:b, foot].max()))
-    return _mean(mid), _mean(peak), _mean(extension)
+                hip_peak.append(float(-hips[a:b, foot].min()))
+    return _mean(mid), _mean(peak), _mean(extension), _mean(hip_peak)
 
 
 def touchdown_flexions_deg(steps: dict, table: list, spec: GaitSpec) -> tuple[float, float]:
@@ -472,7 +477,8 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
     out["sole_tilt_deg"] = sole_tilt_deg(steps, contact)
     out["torso_pitch_deg"] = torso_pitch_deg(steps)
     out["double_support_share"], out["flight_share"] = support_shares(steps, contact)
-    out["knee_midstance_deg"], out["knee_swing_peak_deg"], out["hip_extension_deg"] = leg_phases_deg(steps, events, spec)
+    (out["knee_midstance_deg"], out["knee_swing_peak_deg"], out["hip_extension_deg"],
+     out["hip_swing_peak_deg"]) = leg_phases_deg(steps, events, spec)
     out["knee_touchdown_deg"], out["hip_touchdown_deg"] = touchdown_flexions_deg(steps, table, spec)
 
     distance = float(x[-1] - x[0])
