@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from pamrun.config import ConfigError, EnvConfig, to_object
-from pamrun.evaluation.tracking import segments, smoothed_speed, tracking_metrics, tracking_rms
+from pamrun.evaluation.episodes import clock_touchdown_offsets, run_episode
+from pamrun.evaluation.tracking import clock_keeping, segments, smoothed_speed, tracking_metrics, tracking_rms
 from pamrun.task import clock
 from pamrun.task.env import PamWalkerEnv
 from tests.conftest import compose_config, run_pamrun
@@ -179,7 +180,10 @@ def test_tracking_gives_back_a_known_speed_error():
     expected = math.sqrt((2.0 * 0.04 + 1.5 * 0.04 + 2.0 * 0.01 + 1.5 * 0.01) / 7.0)
     assert tracking_rms(x, command, DT) == pytest.approx(expected, rel=1e-9)
     still = tracking_metrics(_still_arrays(list(np.zeros(n)), np.full(n, 0.3)), 20.0, DT)
-    assert still == {"speed_tracking_rms_m_s": 0.0, "stand_still_feet_down_share": 1.0, "stand_still_drift_m": 0.0}
+    assert {k: still.pop(k) for k in ("speed_tracking_rms_m_s", "stand_still_feet_down_share", "stand_still_drift_m")} == {
+        "speed_tracking_rms_m_s": 0.0, "stand_still_feet_down_share": 1.0, "stand_still_drift_m": 0.0}
+    assert sorted(still) == ["touchdown_clock_offset", "touchdown_on_clock_share"]
+    assert all(math.isnan(v) for v in still.values())  # no per-step clock offsets: an older episode's steps
     lifted = _still_arrays(list(np.zeros(n)), 0.01 * t)
     lifted["foot_force_n"][::4, 1] = 0.0  # one step in four on one foot
     metrics = tracking_metrics(lifted, 20.0, DT)
@@ -190,6 +194,53 @@ def test_tracking_gives_back_a_known_speed_error():
     assert math.isnan(tracking_rms(t[:80], np.ones(80), DT))  # 2 s: no window after settling
     ts, measured = smoothed_speed(t, 0.7 * t)
     assert len(ts) == n - 20 and np.allclose(measured, 0.7)
+
+
+def test_clock_keeping_reads_the_offsets_at_the_touchdowns():
+    """Feet landing 0.05, 0.15 and 0.05 early (right) and 0.02 and 0.4 of the period late (left) after the
+    first second, a third left landing while the clock stands still, and one in the first second: the
+    median offset is 0.05 and 3 of 5 land within 0.1 of their clock's touchdown. Offsets between the
+    touchdowns do not count."""
+    n = 240
+    arrays = _still_arrays([1.0] * n, np.zeros(n), forces=0.0)
+    offsets = np.full((n, 2), 0.3)
+    for foot, rows, values in ((0, (20, 60, 110, 160), (0.0, 0.05, 0.15, -0.05)),
+                               (1, (85, 135, 185), (0.02, 0.4, math.nan))):
+        for row, value in zip(rows, values):
+            arrays["foot_force_n"][row:row + 20, foot] = 100.0
+            offsets[row, foot] = value
+    arrays["clock_touchdown_offset"] = offsets
+    assert clock_keeping(arrays, 20.0) == (pytest.approx(0.05), pytest.approx(0.6))
+    arrays["clock_touchdown_offset"] = np.full((n, 2), math.nan)
+    assert all(math.isnan(v) for v in clock_keeping(arrays, 20.0))
+
+
+def test_an_episode_records_each_feet_clock_offset_as_ktouch_reads_it():
+    """Dropped from 0.3 m with random actions on a clocked task, each foot's recorded offset at a landing
+    lies beyond 0.1 of the period exactly where ktouch charges that landing; run_episode records one
+    offset per foot and step, NaN without a clock."""
+    env = PamWalkerEnv(env={"gait_period_s": 0.8, "swing_share": 0.4}, reward={"ktouch": 1.0})
+    rng, checked = np.random.default_rng(0), 0
+    for seed in range(4):
+        env.reset(seed=seed)
+        env.data.qpos[2] += 0.3
+        before = [False, False]
+        for _ in range(60):
+            *_, terminated, truncated, info = env.step(rng.uniform(-0.5, 0.5, 10).astype(np.float32))
+            down = [f > env.contact_n for f in info["foot_force_n"]]
+            landed = [d and not b for d, b in zip(down, before)]
+            if any(landed):
+                offsets = clock_touchdown_offsets(env)
+                assert info["reward_unweighted"]["ktouch"] == -sum(abs(o) > 0.1 for o, x in zip(offsets, landed) if x)
+                checked += 1
+            before = down
+            if terminated or truncated:
+                break
+    assert checked >= 4
+    episode = run_episode(lambda obs: np.zeros(10, np.float32), env, seed=1)
+    assert np.shape(episode["steps"]["clock_touchdown_offset"]) == (len(episode["steps"]["t_s"]), 2)
+    flat = run_episode(lambda obs: np.zeros(10, np.float32), PamWalkerEnv(), seed=1)
+    assert np.isnan(flat["steps"]["clock_touchdown_offset"]).all() and math.isnan(flat["touchdown_on_clock_share"])
 
 
 @pytest.mark.slow

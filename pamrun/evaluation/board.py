@@ -50,6 +50,8 @@ GAIT_SCALARS = {
     "hip_extension_deg": "hip_extension_deg_mean",
     "hip_touchdown_deg": "hip_touchdown_deg_mean",
     "hip_swing_peak_deg": "hip_swing_peak_deg_mean",
+    "touchdown_clock_offset": "touchdown_clock_offset_mean",  # pamrun.evaluation.tracking defines these two
+    "touchdown_on_clock_share": "touchdown_on_clock_share_mean",
     "walk_targets_met": "walk_targets_met",  # how many of the walk's targets (pamrun.evaluation.targets)
 }
 FIGURE_DPI = 60  # the gait figure at 960 x 384 pixels

@@ -23,6 +23,7 @@ from pamrun.evaluation.targets import targets_met
 from pamrun.evaluation.tracking import TRACKING_METRICS, tracking_metrics
 from pamrun.learning.checkpoints import Agent
 from pamrun.physics.body import build_model
+from pamrun.task import clock
 from pamrun.task.criteria import stood, walk_passed
 from pamrun.task.spec import EnvSpec, eval_env_options
 
@@ -58,10 +59,20 @@ def agent_env(agent: Agent, cfg) -> EnvSpec:
 # What run_episode records per control step (pamrun.evaluation.metrics reads them): torso position and
 # roll, pitch, yaw, joint
 # angles, velocities and muscle torques (10), pressures and contractions of the 20 muscles, the
-# feet's normal forces (2) and contact spheres' positions (2, 4, 3), the action, and the commanded
-# speed v* (pamrun.evaluation.tracking reads it).
+# feet's normal forces (2) and contact spheres' positions (2, 4, 3), the action, the commanded
+# speed v*, and each foot's gait clock past its touchdown (2; pamrun.evaluation.tracking reads these two).
 STEP_KEYS = ("x_m", "y_m", "z_m", "torso_rpy_rad", "joint_angle_rad", "joint_velocity_rad_s", "joint_torque_nm", "pressure_kpa",
-             "contraction_pct", "foot_force_n", "sole_xyz_m", "action", "target_speed_m_s")
+             "contraction_pct", "foot_force_n", "sole_xyz_m", "action", "target_speed_m_s", "clock_touchdown_offset")
+
+
+def clock_touchdown_offsets(env) -> list[float]:
+    """Each foot's gait clock past its touchdown now, right and left, as a share of the period
+    (:func:`pamrun.task.clock.touchdown_offset`, as ``ktouch`` reads it); NaN without a clock or while it
+    stands still."""
+    if not env.gait_clock or env.episode.clock_stopped:
+        return [math.nan, math.nan]
+    phase = env.gait_phase()
+    return [clock.touchdown_offset(phase, foot, env.env_cfg.swing_share) for foot in (0, 1)]
 
 
 def gait_spec(spec: EnvSpec) -> GaitSpec:
@@ -97,7 +108,8 @@ def run_episode(policy: Callable, env, seed: int, frame_sink: Callable | None = 
                            ("joint_torque_nm", info["joint_torque_nm"]), ("pressure_kpa", info["pressure_kpa"].ravel()),
                            ("contraction_pct", info["contraction_pct"].ravel()), ("foot_force_n", info["foot_force_n"]),
                            ("sole_xyz_m", info["sole_xyz_m"]), ("action", action),
-                           ("target_speed_m_s", info["target_speed_m_s"])):
+                           ("target_speed_m_s", info["target_speed_m_s"]),
+                           ("clock_touchdown_offset", clock_touchdown_offsets(env))):
             steps[key].append(value)
         if frame_sink:
             frame_sink(env.render())

@@ -1,6 +1,7 @@
-"""How well an episode follows its commanded speed v*, and how still it stands where v* = 0,
-from its per-step arrays (``t_s``, ``x_m``, ``y_m``, ``foot_force_n`` and ``target_speed_m_s``,
-as :func:`pamrun.evaluation.episodes.run_episode` records them).
+"""How well an episode follows its commanded speed v*, how still it stands where v* = 0, and how its
+feet keep to the gait clock, from its per-step arrays (``t_s``, ``x_m``, ``y_m``, ``foot_force_n``,
+``target_speed_m_s`` and ``clock_touchdown_offset``, as :func:`pamrun.evaluation.episodes.run_episode`
+records them).
 
 v* is piecewise constant (``env.speed_schedule``, drawn changes, or one speed for the episode);
 each constant stretch is a *segment*, from the change (0 s for the first) to the next change or
@@ -16,6 +17,16 @@ its length) minus v*.
 * ``stand_still_drift_m``: in the same stretches, the torso's horizontal displacement from the
   end of settling to the segment's end, summed over the segments [m].
 
+How well the feet keep to the gait clock (``clock_touchdown_offset``, each foot's clock past its
+touchdown per step, a share of the period in [-0.5, 0.5); NaN without a clock or while it stands still),
+over the touchdowns after the first ``CLOCK_SETTLE_S`` at which the clock runs (rising edges of contact,
+a foot's force above the threshold, row by row, as ``ktouch`` charges them):
+
+* ``touchdown_clock_offset``: the median offset at those touchdowns (+: the feet land late; a foot
+  cadence above the clock's drifts through every value);
+* ``touchdown_on_clock_share``: the share of them within ``pamrun.task.clock.TOUCHDOWN_WINDOW_SHARE``
+  (0.1 of the period) of the clock's touchdown, where ``ktouch`` does not charge them.
+
 Each is NaN where it is undefined (no whole window; no v* = 0 segment outlasting its settling),
 e.g. in an episode that falls before its first window ends.
 """
@@ -26,11 +37,15 @@ import math
 
 import numpy as np
 
+from pamrun.task.clock import TOUCHDOWN_WINDOW_SHARE
+
 SETTLE_S = 1.5  # after a change of v*, the time the robot is given to reach it [s]
 WINDOW_S = 2.0  # the windows the mean speed is measured over [s]
 MIN_WINDOW_S = 1.0  # a segment's leftover after its whole windows is a window when at least this long [s]
 SMOOTH_S = 0.5  # the window of the measured speed the speed figure draws [s]
-TRACKING_METRICS = ("speed_tracking_rms_m_s", "stand_still_feet_down_share", "stand_still_drift_m")
+CLOCK_SETTLE_S = 1.0  # the clock metrics leave out the touchdowns of the start from standing [s]
+TRACKING_METRICS = ("speed_tracking_rms_m_s", "stand_still_feet_down_share", "stand_still_drift_m",
+                    "touchdown_clock_offset", "touchdown_on_clock_share")
 
 
 def segments(command: np.ndarray, dt: float) -> list[tuple[float, float, float]]:
@@ -79,11 +94,30 @@ def stand_still(arrays: dict, contact_threshold_n: float, dt: float) -> tuple[fl
     return float(np.concatenate(down).mean()), float(drift)
 
 
+def clock_keeping(arrays: dict, contact_threshold_n: float) -> tuple[float, float]:
+    """``touchdown_clock_offset`` and ``touchdown_on_clock_share`` (module docstring); NaN without a
+    touchdown on a running clock (or without the per-step offsets, an older episode's)."""
+    if "clock_touchdown_offset" not in arrays:
+        return float("nan"), float("nan")
+    down = np.asarray(arrays["foot_force_n"], float).reshape(-1, 2) > contact_threshold_n
+    offsets = np.asarray(arrays["clock_touchdown_offset"], float).reshape(-1, 2)
+    landing = np.zeros_like(down)
+    landing[1:] = down[1:] & ~down[:-1]
+    landing &= (np.asarray(arrays["t_s"], float) > CLOCK_SETTLE_S + 1e-9)[:, None]
+    at = offsets[landing]
+    at = at[np.isfinite(at)]
+    if not len(at):
+        return float("nan"), float("nan")
+    return float(np.median(at)), float(np.mean(np.abs(at) <= TOUCHDOWN_WINDOW_SHARE))
+
+
 def tracking_metrics(arrays: dict, contact_threshold_n: float, dt: float) -> dict[str, float]:
     """:data:`TRACKING_METRICS` of one episode's per-step arrays (module docstring)."""
     share, drift = stand_still(arrays, contact_threshold_n, dt)
+    offset, on_clock = clock_keeping(arrays, contact_threshold_n)
     return {"speed_tracking_rms_m_s": tracking_rms(np.asarray(arrays["x_m"]), np.asarray(arrays["target_speed_m_s"]), dt),
-            "stand_still_feet_down_share": share, "stand_still_drift_m": drift}
+            "stand_still_feet_down_share": share, "stand_still_drift_m": drift,
+            "touchdown_clock_offset": offset, "touchdown_on_clock_share": on_clock}
 
 
 def smoothed_speed(t_s: np.ndarray, x_m: np.ndarray, window_s: float = SMOOTH_S) -> tuple[np.ndarray, np.ndarray]:

@@ -54,11 +54,15 @@ def in_early_stance(phase: float, foot: int, swing_share: float) -> bool:
 TOUCHDOWN_WINDOW_SHARE = 0.1
 
 
+def touchdown_offset(phase: float, foot: int, swing_share: float) -> float:
+    """How far a foot's clock is past its touchdown (psi = ``swing_share``, :func:`since_lift_off`), as a
+    share of the period in [-0.5, 0.5): + after it (a foot landing now lands late), - before it."""
+    return (since_lift_off(phase, foot, swing_share) - swing_share + 0.5) % 1.0 - 0.5
+
+
 def near_touchdown(phase: float, foot: int, swing_share: float) -> bool:
-    """Whether a foot's clock is within :data:`TOUCHDOWN_WINDOW_SHARE` of the period of its touchdown
-    (psi = ``swing_share``, :func:`since_lift_off`), either side."""
-    miss = (since_lift_off(phase, foot, swing_share) - swing_share + 0.5) % 1.0 - 0.5
-    return abs(miss) <= TOUCHDOWN_WINDOW_SHARE
+    """Whether a foot's clock is within :data:`TOUCHDOWN_WINDOW_SHARE` of the period of its touchdown, either side."""
+    return abs(touchdown_offset(phase, foot, swing_share)) <= TOUCHDOWN_WINDOW_SHARE
 
 
 def landing_reach_m(swing_share: float, step_length_m: float) -> float:
