@@ -440,6 +440,44 @@ def test_mirror_loss_makes_the_actor_its_own_mirror_image(name):
         AlgoConfig(mirror_loss=-1)
 
 
+@pytest.mark.parametrize("name", ["td3", "sac"])
+def test_anchor_holds_a_started_actor_near_the_one_it_started_from(name):
+    """algo.anchor: a learner that starts from a trained actor (start_from, an agent file's actor and new
+    critics) charges mean|Q| ||pi(s) - pi_0(s)||^2; its updates move the actor far less than the same
+    updates without it, and a resume state keeps pi_0."""
+    obs = _batch()["observation"]
+
+    def drift(anchor: float):
+        torch.manual_seed(1)
+        trained = networks.make_learner(AlgoConfig(name=name), 43, 10, SPEC)
+        with torch.no_grad():
+            trained.actor.module.net[-2].bias.uniform_(-0.5, 0.5)  # an actor away from the new one's
+        torch.manual_seed(0)
+        learner = networks.make_learner(AlgoConfig(name=name, actor_lr=1e-3, anchor=anchor), 43, 10, SPEC)
+        took = learner.start_from({"actor": trained.policy_state()})
+        with torch.no_grad():
+            start = trained.actor.module(obs)
+            assert torch.equal(learner.actor.module(obs), start)
+        for _ in range(60):
+            learner.update(_batch())
+        with torch.no_grad():
+            return learner, took, (learner.actor.module(obs) - start).pow(2).mean().item()
+
+    free, took_free, moved_free = drift(0.0)
+    held, took_held, moved_held = drift(50.0)
+    assert free.anchor_actor is None and "anchored" not in took_free and "algo.anchor 50" in took_held
+    assert moved_free > 1e-3 and moved_held < 0.3 * moved_free, (moved_free, moved_held)
+    assert held.anchor_loss(obs).item() > 0  # the actor moved a little, and the anchor says how far
+    state = held.state_dict()
+    resumed = networks.make_learner(AlgoConfig(name=name, anchor=50.0), 43, 10, SPEC)
+    resumed.load_state_dict(state, held.updates)
+    torch.testing.assert_close(resumed.anchor_actor(obs), held.anchor_actor(obs))
+    with pytest.raises(ValueError, match="algo.anchor"):
+        resumed.load_state_dict(free.state_dict(), free.updates)
+    with pytest.raises(ConfigError, match="anchor"):
+        AlgoConfig(anchor=-0.1)
+
+
 @pytest.mark.parametrize("overrides", [["experiment=walker"], ["experiment=walker", "muscle.command=independent",
                                                                "env.speed_command=true"]])
 def test_the_recipe_gives_the_learner_the_envs_mirror_maps(overrides):

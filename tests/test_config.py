@@ -49,6 +49,8 @@ def test_default_config_is_the_sized_robot_and_muscle_thesis_is_the_thesis(cfg):
         ("muscle.radius_mm.ankle_pitch=80", "muscle.radius_mm.ankle_pitch"),
         ("muscle.neutral_deg.knee=120", "muscle.neutral_deg.knee"),
         ("pair.experiments.max_and_1bar.pressure1_kpa=-1", "pair.experiments.max_and_1bar.pressure1_kpa"),
+        ("algo.anchor=-0.4", "algo.anchor"),
+        ("algo.anchor=0.4", "algo.anchor"),  # no train.init_from to anchor to
     ],
 )
 def test_impossible_values_name_the_key(override, key):

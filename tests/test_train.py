@@ -390,7 +390,8 @@ def test_a_run_started_from_a_trained_agent_begins_with_its_networks(tmp_path):
     stages weigh that its pamrun did not compute, or where the last.pt was copied without its buffer
     folder: training computes every term, so a term the source never weighed comes along); an
     agent file its actor alone (the critics new,
-    the buffer empty); the agent is evaluated at frame 0; the counters start at 0. With no updates
+    the buffer empty; with algo.anchor, a frozen copy of it in last.pt); the agent is evaluated at frame 0;
+    the counters start at 0. With no updates
     the networks end as they began, so last.pt shows what was taken."""
     from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
@@ -417,9 +418,11 @@ def test_a_run_started_from_a_trained_agent_begins_with_its_networks(tmp_path):
     agent = source / "checkpoints" / "actor_only.pt"
     torch.save({"actor": a["actor"], "meta": {}}, agent)
     half = tmp_path / "half"
-    assert train_here(half, *TINY, *still, "train.eval_every_frames=0", f"train.init_from={agent}") == "max_frames"
+    assert train_here(half, *TINY, *still, "train.eval_every_frames=0", f"train.init_from={agent}",
+                      "algo.anchor=0.4") == "max_frames"
     c = torch.load(half / "checkpoints" / "last.pt", weights_only=True)
-    assert all(torch.equal(v, c["networks"]["actor"][k]) for k, v in a["networks"]["actor"].items())
+    for part in ("actor", "anchor_actor"):  # algo.anchor: the actor it started from, kept for a resume
+        assert all(torch.equal(v, c["networks"][part][k]) for k, v in a["networks"]["actor"].items()), part
     assert not all(torch.equal(v, c["networks"]["critics"][k]) for k, v in a["networks"]["critics"].items())
     assert c["buffer"]["length"] == 400
 

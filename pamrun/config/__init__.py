@@ -96,6 +96,8 @@ class Config:
                                                                   self.train.walk_weights.get("kgait", 0.0))):
             _require(not weight or self.env.gait_period_s > 0, key,
                      "needs a gait clock to follow (env.gait_period_s > 0, e.g. 0.8)")
+        _require(not self.algo.anchor or self.train.init_from, "algo.anchor",
+                 "anchors the actor to the one it starts from: needs train.init_from")
         _require(self.train.walk_noise_beta is None or self.algo.name == "td3", "train.walk_noise_beta",
                  f"colors TD3's exploration noise; algo.name is {self.algo.name}")
         for key, cap in self.train.adapt_weights.items():  # from the gait stage's own weight up to cap

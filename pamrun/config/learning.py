@@ -52,6 +52,12 @@ class AlgoConfig:
     # observation's and action's mirror images (pamrun/task/symmetry.py): the policy is asked to be its own
     # mirror image, beyond mirrored data (train.mirror). Yu, Turk & Liu, SIGGRAPH 2018: weight 4. 0 = off.
     mirror_loss: float = 0.0
+    # Weight b of the anchor added to the actor's loss when a run starts from a trained agent (train.init_from):
+    # b mean|Q| mean ||pi(s) - pi_0(s)||^2, pi_0 the actor it started from, frozen. Scaled by the batch's mean |Q|
+    # as TD3+BC's behaviour term (Fujimoto & Gu, NeurIPS 2021: -lambda Q + (pi - a)^2, lambda = alpha / mean|Q|,
+    # alpha 2.5, i.e. b = 1/alpha = 0.4), so that b reads the same under any reward scale. New critics' first
+    # gradients otherwise throw the started actor over in a hundred actor updates (docs/results.md, k12). 0 = off.
+    anchor: float = 0.0
     # CrossQ (Bhatt, Palenicek et al., ICLR 2024), for td3 or sac: the concatenating critics batch-renormalised
     # (Ioffe 2017: at the input and after each hidden layer), no target networks, and Q(s, a) with Q(s', a') in
     # one forward pass, so that both share the normalisation's statistics. The paper's other choices are keys of
@@ -74,7 +80,7 @@ class AlgoConfig:
         _require(0 < self.target_smoothing <= 1, "target_smoothing", "must lie in (0, 1]")
         _positive(self, "actor_lr", "critic_lr", "output_init_scale", "ou_dt_s", "grad_clip", "init_alpha")
         _non_negative(self, "noise_variance", "noise_decay", "noise_variance_min", "ou_theta", "policy_noise",
-                      "noise_clip", "mirror_loss")
+                      "noise_clip", "mirror_loss", "anchor")
         _require(0 <= self.noise_beta <= 2, "noise_beta", f"must lie in [0, 2] (0 white, 1 pink, 2 red), got {self.noise_beta}")
         _require(self.noise_beta == 0 or self.name == "td3", "noise_beta",
                  f"colors TD3's Gaussian exploration; {self.name} explores otherwise (ddpg: OU, ou_theta; sac: its own spread)")

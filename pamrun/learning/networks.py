@@ -195,7 +195,8 @@ class Learner:
       (:meth:`next_action`; TD3 adds its target policy smoothing);
     * critic loss: sum over the critics of mean(loss_function(Q_k(s, a), y));
     * actor loss: -mean(Q_1(s, pi(s))), plus ``algo.mirror_loss`` x :meth:`mirror_loss` when the
-      learner has the mirror maps (``mirror``: observation index and sign, action index and sign);
+      learner has the mirror maps (``mirror``: observation index and sign, action index and sign), plus
+      ``algo.anchor`` x :meth:`anchor_loss` when it started from a trained actor (:meth:`start_from`);
     * targets: theta' <- theta' + tau (theta - theta') (TorchRL's ``SoftUpdate``).
 
     With ``algo.crossq`` (:class:`CrossQCritic`) there are no targets: a' = pi(s') from the actor
@@ -236,6 +237,8 @@ class Learner:
         # so a run resumed between two of them has none yet.
         self._actor_loss: torch.Tensor | None = None
         self._critic_loss: torch.Tensor | None = None
+        self.anchor_actor: nn.Module | None = None  # pi_0 of algo.anchor: the actor start_from took, frozen
+        self._q_scale = torch.tensor(0.0)  # the last actor loss's mean |Q|, the anchor's scale
 
     def next_action(self, next_obs, action) -> tuple[torch.Tensor, torch.Tensor | float]:
         """The bootstrap action a' and what the target subtracts from min_k Q'_k(s', a')."""
@@ -263,7 +266,17 @@ class Learner:
         return sum(self._distance(q[:n], y) for q in qs)
 
     def actor_loss(self, obs) -> torch.Tensor:
-        return -self.critics[0](obs, self.actor.module(obs)).mean()
+        q = self.critics[0](obs, self.actor.module(obs))
+        self._q_scale = q.detach().abs().mean()
+        return -q.mean()
+
+    def anchor_loss(self, obs) -> torch.Tensor:
+        """mean|Q| x mean ||pi(s) - pi_0(s)||^2 over the batch and the actions, pi_0 the actor the run
+        started from: 0 while the actor stays where it started (TD3+BC's behaviour term, with pi_0's
+        action in place of the data's; mean|Q| from the :meth:`actor_loss` just computed)."""
+        with torch.no_grad():
+            start = self.anchor_actor(obs)
+        return self._q_scale * (self.actor.module(obs) - start).pow(2).mean()
 
     def mirror_loss(self, obs) -> torch.Tensor:
         """mean ||pi(s) - M_a pi(M_s s)||^2 over the batch and the actions: 0 for a policy that is
@@ -295,6 +308,8 @@ class Learner:
             actor_loss = self.actor_loss(obs)
             if self.mirror is not None and self.cfg.mirror_loss:
                 actor_loss = actor_loss + self.cfg.mirror_loss * self.mirror_loss(obs)
+            if self.anchor_actor is not None:
+                actor_loss = actor_loss + self.cfg.anchor * self.anchor_loss(obs)
             self.actor_opt.zero_grad()
             actor_loss.backward()
             self.critics.train()
@@ -342,7 +357,8 @@ class Learner:
     def state_dict(self) -> dict:
         return {"networks": {"actor": self.actor.module.state_dict(), "critics": self.critics.state_dict(),
                              "actor_target": self.actor_target.state_dict(),
-                             "critic_targets": self.critic_targets.state_dict()},
+                             "critic_targets": self.critic_targets.state_dict(),
+                             **({} if self.anchor_actor is None else {"anchor_actor": self.anchor_actor.state_dict()})},
                 "actor_opt": self.actor_opt.state_dict(), "critic_opt": self.critic_opt.state_dict()}
 
     def start_from(self, state: dict) -> str:
@@ -353,12 +369,17 @@ class Learner:
         if nets is None:
             self.actor.module.load_state_dict(state["actor"], strict=False)  # net.*: a SAC actor's head stays new
             self.actor_target.load_state_dict(self.actor.module.state_dict())
-            return "the actor (the critics learn from new)"
-        self.actor.module.load_state_dict(nets["actor"])
-        self.actor_target.load_state_dict(nets["actor_target"])
-        self.critics.load_state_dict(nets["critics"])
-        self.critic_targets.load_state_dict(nets["critic_targets"])
-        return "the actor, the critics and their targets"
+            took = "the actor (the critics learn from new)"
+        else:
+            self.actor.module.load_state_dict(nets["actor"])
+            self.actor_target.load_state_dict(nets["actor_target"])
+            self.critics.load_state_dict(nets["critics"])
+            self.critic_targets.load_state_dict(nets["critic_targets"])
+            took = "the actor, the critics and their targets"
+        if self.cfg.anchor:
+            self.anchor_actor = copy.deepcopy(self.actor.module).requires_grad_(False)
+            took += f", the actor anchored where it starts (algo.anchor {self.cfg.anchor:g})"
+        return took
 
     def load_state_dict(self, state: dict, updates: int) -> None:
         if "networks" not in state:
@@ -371,6 +392,11 @@ class Learner:
         self.actor_opt.load_state_dict(state["actor_opt"])
         self.critic_opt.load_state_dict(state["critic_opt"])
         self.updates = updates
+        if "anchor_actor" in nets:
+            self.anchor_actor = copy.deepcopy(self.actor.module).requires_grad_(False)
+            self.anchor_actor.load_state_dict(nets["anchor_actor"])
+        elif self.cfg.anchor:
+            raise ValueError("algo.anchor: this resume state holds no actor to anchor to")
 
 
 class TD3Learner(Learner):
@@ -409,6 +435,7 @@ class SACLearner(Learner):
         action, log_prob = self.actor.module.sample(obs)
         q = torch.min(self.critics[0](obs, action), self.critics[1](obs, action))
         self._log_prob = log_prob.detach()
+        self._q_scale = q.detach().abs().mean()
         return (self.log_alpha.exp().detach() * log_prob - q).mean()
 
     def after_actor_step(self) -> None:
