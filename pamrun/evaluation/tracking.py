@@ -37,6 +37,7 @@ import math
 
 import numpy as np
 
+from pamrun.evaluation.metrics import contacts, touchdowns
 from pamrun.task.clock import TOUCHDOWN_WINDOW_SHARE
 
 SETTLE_S = 1.5  # after a change of v*, the time the robot is given to reach it [s]
@@ -99,12 +100,10 @@ def clock_keeping(arrays: dict, contact_threshold_n: float) -> tuple[float, floa
     touchdown on a running clock (or without the per-step offsets, an older episode's)."""
     if "clock_touchdown_offset" not in arrays:
         return float("nan"), float("nan")
-    down = np.asarray(arrays["foot_force_n"], float).reshape(-1, 2) > contact_threshold_n
     offsets = np.asarray(arrays["clock_touchdown_offset"], float).reshape(-1, 2)
-    landing = np.zeros_like(down)
-    landing[1:] = down[1:] & ~down[:-1]
-    landing &= (np.asarray(arrays["t_s"], float) > CLOCK_SETTLE_S + 1e-9)[:, None]
-    at = offsets[landing]
+    late = np.asarray(arrays["t_s"], float) > CLOCK_SETTLE_S + 1e-9
+    at = np.concatenate([offsets[rows[late[rows]], foot]
+                         for foot, rows in enumerate(touchdowns(contacts(arrays, contact_threshold_n)))])
     at = at[np.isfinite(at)]
     if not len(at):
         return float("nan"), float("nan")
