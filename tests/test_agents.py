@@ -444,17 +444,22 @@ def test_mirror_loss_makes_the_actor_its_own_mirror_image(name):
 def test_anchor_holds_a_started_actor_near_the_one_it_started_from(name):
     """algo.anchor: a learner that starts from a trained actor (start_from, an agent file's actor and new
     critics) charges mean|Q| ||pi(s) - pi_0(s)||^2; its updates move the actor far less than the same
-    updates without it, and a resume state keeps pi_0."""
+    updates without it, and a resume state keeps pi_0. Faded out (algo.anchor_fade_*, at a frame past the
+    fade) the same updates move it as far as without the anchor."""
     obs = _batch()["observation"]
 
-    def drift(anchor: float):
+    def drift(anchor: float, frames: int | None = None):
         torch.manual_seed(1)
         trained = networks.make_learner(AlgoConfig(name=name), 43, 10, SPEC)
         with torch.no_grad():
             trained.actor.module.net[-2].bias.uniform_(-0.5, 0.5)  # an actor away from the new one's
         torch.manual_seed(0)
-        learner = networks.make_learner(AlgoConfig(name=name, actor_lr=1e-3, anchor=anchor), 43, 10, SPEC)
+        fade = {} if frames is None else {"anchor_fade_start_frames": 1000, "anchor_fade_frames": 500}
+        cfg = AlgoConfig(name=name, actor_lr=1e-3, anchor=anchor, **fade)
+        learner = networks.make_learner(cfg, 43, 10, SPEC)
         took = learner.start_from({"actor": trained.policy_state()})
+        if frames is not None:
+            learner.anchor_weight = networks.anchor_weight(cfg, frames)  # as the trainer sets it
         with torch.no_grad():
             start = trained.actor.module(obs)
             assert torch.equal(learner.actor.module(obs), start)
@@ -468,6 +473,10 @@ def test_anchor_holds_a_started_actor_near_the_one_it_started_from(name):
     assert free.anchor_actor is None and "anchored" not in took_free and "algo.anchor 50" in took_held
     assert moved_free > 1e-3 and moved_held < 0.3 * moved_free, (moved_free, moved_held)
     assert held.anchor_loss(obs).item() > 0  # the actor moved a little, and the anchor says how far
+    assert "fading to 0 from 1,000 to 1,500 frames" in drift(50.0, 0)[1]
+    assert drift(50.0, 0)[2] == pytest.approx(moved_held, rel=1e-4)  # before the fade: held as tightly
+    assert drift(50.0, 1250)[2] < moved_free  # half faded: held, less
+    assert drift(50.0, 1500)[2] == pytest.approx(moved_free, rel=1e-4)  # faded out: as free
     state = held.state_dict()
     resumed = networks.make_learner(AlgoConfig(name=name, anchor=50.0), 43, 10, SPEC)
     resumed.load_state_dict(state, held.updates)

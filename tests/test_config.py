@@ -51,6 +51,8 @@ def test_default_config_is_the_sized_robot_and_muscle_thesis_is_the_thesis(cfg):
         ("pair.experiments.max_and_1bar.pressure1_kpa=-1", "pair.experiments.max_and_1bar.pressure1_kpa"),
         ("algo.anchor=-0.4", "algo.anchor"),
         ("algo.anchor=0.4", "algo.anchor"),  # no train.init_from to anchor to
+        ("algo.anchor_fade_frames=-1", "algo.anchor_fade_frames"),
+        ("algo.anchor_fade_start_frames=1000", "algo.anchor_fade_start_frames"),  # no algo.anchor to fade
     ],
 )
 def test_impossible_values_name_the_key(override, key):

@@ -390,9 +390,11 @@ def test_a_run_started_from_a_trained_agent_begins_with_its_networks(tmp_path):
     stages weigh that its pamrun did not compute, or where the last.pt was copied without its buffer
     folder: training computes every term, so a term the source never weighed comes along); an
     agent file its actor alone (the critics new,
-    the buffer empty; with algo.anchor, a frozen copy of it in last.pt); the agent is evaluated at frame 0;
+    the buffer empty; with algo.anchor, a frozen copy of it in last.pt, and the anchor's weight as it
+    fades in TensorBoard); the agent is evaluated at frame 0;
     the counters start at 0. With no updates
     the networks end as they began, so last.pt shows what was taken."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
     from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
     from pamrun.learning import checkpoints
@@ -419,7 +421,9 @@ def test_a_run_started_from_a_trained_agent_begins_with_its_networks(tmp_path):
     torch.save({"actor": a["actor"], "meta": {}}, agent)
     half = tmp_path / "half"
     assert train_here(half, *TINY, *still, "train.eval_every_frames=0", f"train.init_from={agent}",
-                      "algo.anchor=0.4") == "max_frames"
+                      "algo.anchor=0.4", "algo.anchor_fade_start_frames=100", "algo.anchor_fade_frames=200") == "max_frames"
+    faded = EventAccumulator(str(half / "tensorboard")).Reload().Scalars("curriculum/anchor")
+    assert [e.step for e in faded] == [200, 400] and faded[0].value == pytest.approx(0.2) and faded[1].value == 0
     c = torch.load(half / "checkpoints" / "last.pt", weights_only=True)
     for part in ("actor", "anchor_actor"):  # algo.anchor: the actor it started from, kept for a resume
         assert all(torch.equal(v, c["networks"][part][k]) for k, v in a["networks"]["actor"].items()), part
@@ -569,6 +573,24 @@ def test_the_gait_stage_can_start_at_a_march_that_covers_a_distance(cfg):
     again = WalkCurriculum(cfg)
     again.replay(rows)
     assert (again.stage, again.gait_since) == ("gait", 100000)
+
+
+def test_a_run_from_a_trained_agent_starts_at_its_last_stage(cfg):
+    """train.init_from: the curriculum is at the gait stage from frame 0 where train.gait_weights are set
+    (whatever its first evaluation), at the walking stage otherwise, and a resume's replay keeps it there."""
+    from pamrun.learning.curriculum import WalkCurriculum
+
+    cfg.train.init_from, cfg.train.walk_weights, cfg.train.gait_from_distance_m = "agent.pt", {"kspeed": 4.0}, 2.0
+    walking = WalkCurriculum(cfg)
+    assert (walking.stage, walking.since) == ("walk", 0) and "kstep" not in walking.changed()
+    cfg.train.gait_weights = {"kstep": 100.0}
+    curriculum = WalkCurriculum(cfg)
+    assert (curriculum.stage, curriculum.since, curriculum.gait_since) == ("gait", 0, 0)
+    assert curriculum.transform.delta["kstep"] == 100.0 - cfg.reward.kstep
+    assert curriculum.transform.delta["kspeed"] == 4.0 - cfg.reward.kspeed
+    assert "Gait stage of the curriculum from the first frame" in curriculum.describe()
+    curriculum.replay([{"frames": 0, "stand_rate": 0.9, "walk_pass_rate": 0.0, "distance_min": 0.5}])
+    assert curriculum.stage == "gait"
 
 
 def test_adapted_weights_hold_on_the_distance_milestone(cfg):

@@ -58,6 +58,11 @@ class AlgoConfig:
     # alpha 2.5, i.e. b = 1/alpha = 0.4), so that b reads the same under any reward scale. New critics' first
     # gradients otherwise throw the started actor over in a hundred actor updates (docs/results.md, k12). 0 = off.
     anchor: float = 0.0
+    # The anchor fades: its weight falls linearly from b to 0 over anchor_fade_frames, from frame
+    # anchor_fade_start_frames of the run on (its frame count, as train.max_frames'), so that new critics learn
+    # under it and the actor then goes where they lead (TensorBoard curriculum/anchor). 0 = it holds all run.
+    anchor_fade_start_frames: int = 0
+    anchor_fade_frames: int = 0
     # CrossQ (Bhatt, Palenicek et al., ICLR 2024), for td3 or sac: the concatenating critics batch-renormalised
     # (Ioffe 2017: at the input and after each hidden layer), no target networks, and Q(s, a) with Q(s', a') in
     # one forward pass, so that both share the normalisation's statistics. The paper's other choices are keys of
@@ -80,7 +85,9 @@ class AlgoConfig:
         _require(0 < self.target_smoothing <= 1, "target_smoothing", "must lie in (0, 1]")
         _positive(self, "actor_lr", "critic_lr", "output_init_scale", "ou_dt_s", "grad_clip", "init_alpha")
         _non_negative(self, "noise_variance", "noise_decay", "noise_variance_min", "ou_theta", "policy_noise",
-                      "noise_clip", "mirror_loss", "anchor")
+                      "noise_clip", "mirror_loss", "anchor", "anchor_fade_start_frames", "anchor_fade_frames")
+        for key in ("anchor_fade_start_frames", "anchor_fade_frames"):
+            _require(not getattr(self, key) or self.anchor, key, "fades algo.anchor: needs algo.anchor > 0")
         _require(0 <= self.noise_beta <= 2, "noise_beta", f"must lie in [0, 2] (0 white, 1 pink, 2 red), got {self.noise_beta}")
         _require(self.noise_beta == 0 or self.name == "td3", "noise_beta",
                  f"colors TD3's Gaussian exploration; {self.name} explores otherwise (ddpg: OU, ou_theta; sac: its own spread)")
@@ -119,7 +126,8 @@ class TrainConfig:
     # critics and, where reward.*, env.*, body.* and muscle.* are the same, its replay buffer
     # (re-weighted like every sample).
     # The counters start at 0, the agent is evaluated at frame 0, and a stand-then-walk curriculum
-    # starts at its walking stage. Set train.init_random_frames=0 to keep its first frames its own.
+    # starts at its last stage (gait with gait_weights). Set train.init_random_frames=0 to keep its
+    # first frames its own.
     # "" = from scratch
     init_from: str = ""
     # Evaluation during training: eval_episodes deterministic episodes of pamrun eval's walk test

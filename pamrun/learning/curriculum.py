@@ -15,7 +15,8 @@ Until the "stand, learned" milestone (:func:`pamrun.task.criteria.stands_learned
 optimises the env's reward; from it on, the forward weight is ``walk_kvx`` instead of
 ``reward.kvx``, and every weight in ``walk_weights`` replaces the env's. The stage is a
 function of the run's evaluations (``evals.csv``), so a resumed run takes it up where it was.
-A run from a trained agent (``train.init_from``) is at the walking stage from its first frame.
+A run from a trained agent (``train.init_from``) is at its last stage from its first frame: gait where
+it has ``train.gait_weights``, walking otherwise.
 ``train.gait_weights`` adds a third stage, gait: from the walking stage's first evaluation in
 which every episode passes the walk test (or, with ``train.gait_from_distance_m``, stands the
 whole episode and covers that distance), its weights replace those of the walking stage (a
@@ -121,8 +122,10 @@ class WalkCurriculum:
         self.since: int | None = None  # frames of the evaluation that started the walking stage
         self.gait_since: int | None = None  # ... and the gait stage
         self.transform = Reweight({k: getattr(cfg.reward, k) for k in REWARD_KEYS})
-        if self.active and cfg.train.init_from:  # a trained agent's run walks from its first frame
+        if self.active and cfg.train.init_from:  # a trained agent's run is at its last stage from its first frame
             self._start("walk", 0)
+            if cfg.train.gait_weights:
+                self._start("gait", 0)
 
     @property
     def walking(self) -> bool:
@@ -203,8 +206,9 @@ class WalkCurriculum:
             metres = self.cfg.train.gait_from_distance_m
             when = ("first passed the walk test" if metres is None else
                     f"first stood the whole episode and covered {metres:g} m (train.gait_from_distance_m)")
-            return (f"Gait stage of the curriculum since {self.gait_since} frames, when every evaluation episode "
-                    f"{when}: the learner's weights {changed} (train.gait_weights over "
+            when = ("from the first frame, a trained agent's run (train.init_from)" if self.cfg.train.init_from else
+                    f"since {self.gait_since} frames, when every evaluation episode {when}")
+            return (f"Gait stage of the curriculum {when}: the learner's weights {changed} (train.gait_weights over "
                     f"train.walk_weights; the env keeps reward.*).{self._describe_adapt()}")
         why = ("from the first frame, a trained agent's run (train.init_from)" if self.cfg.train.init_from else
                f"since {self.since} frames, when it first stood in every evaluation episode")

@@ -196,7 +196,8 @@ class Learner:
     * critic loss: sum over the critics of mean(loss_function(Q_k(s, a), y));
     * actor loss: -mean(Q_1(s, pi(s))), plus ``algo.mirror_loss`` x :meth:`mirror_loss` when the
       learner has the mirror maps (``mirror``: observation index and sign, action index and sign), plus
-      ``algo.anchor`` x :meth:`anchor_loss` when it started from a trained actor (:meth:`start_from`);
+      ``anchor_weight`` x :meth:`anchor_loss` when it started from a trained actor (:meth:`start_from`;
+      the weight ``algo.anchor``, or less as it fades: :func:`anchor_weight`, set by the trainer);
     * targets: theta' <- theta' + tau (theta - theta') (TorchRL's ``SoftUpdate``).
 
     With ``algo.crossq`` (:class:`CrossQCritic`) there are no targets: a' = pi(s') from the actor
@@ -239,6 +240,7 @@ class Learner:
         self._critic_loss: torch.Tensor | None = None
         self.anchor_actor: nn.Module | None = None  # pi_0 of algo.anchor: the actor start_from took, frozen
         self._q_scale = torch.tensor(0.0)  # the last actor loss's mean |Q|, the anchor's scale
+        self.anchor_weight = cfg.anchor  # the anchor's weight now (anchor_weight: it may fade)
 
     def next_action(self, next_obs, action) -> tuple[torch.Tensor, torch.Tensor | float]:
         """The bootstrap action a' and what the target subtracts from min_k Q'_k(s', a')."""
@@ -308,8 +310,8 @@ class Learner:
             actor_loss = self.actor_loss(obs)
             if self.mirror is not None and self.cfg.mirror_loss:
                 actor_loss = actor_loss + self.cfg.mirror_loss * self.mirror_loss(obs)
-            if self.anchor_actor is not None:
-                actor_loss = actor_loss + self.cfg.anchor * self.anchor_loss(obs)
+            if self.anchor_actor is not None and self.anchor_weight:
+                actor_loss = actor_loss + self.anchor_weight * self.anchor_loss(obs)
             self.actor_opt.zero_grad()
             actor_loss.backward()
             self.critics.train()
@@ -378,7 +380,11 @@ class Learner:
             took = "the actor, the critics and their targets"
         if self.cfg.anchor:
             self.anchor_actor = copy.deepcopy(self.actor.module).requires_grad_(False)
-            took += f", the actor anchored where it starts (algo.anchor {self.cfg.anchor:g})"
+            took += f", the actor anchored where it starts (algo.anchor {self.cfg.anchor:g}"
+            if self.cfg.anchor_fade_frames:
+                start, fade = self.cfg.anchor_fade_start_frames, self.cfg.anchor_fade_frames
+                took += f", fading to 0 from {start:,} to {start + fade:,} frames"
+            took += ")"
         return took
 
     def load_state_dict(self, state: dict, updates: int) -> None:
@@ -457,6 +463,15 @@ class SACLearner(Learner):
 
 
 LEARNERS = {"ddpg": Learner, "td3": TD3Learner, "sac": SACLearner}  # algo.name -> its learner
+
+
+def anchor_weight(cfg: AlgoConfig, frames: int) -> float:
+    """``algo.anchor``'s weight at a run's frame count: b until ``anchor_fade_start_frames``, then
+    falling linearly to 0 over ``anchor_fade_frames`` (b all run when that is 0)."""
+    if not cfg.anchor_fade_frames:
+        return cfg.anchor
+    left = 1.0 - (frames - cfg.anchor_fade_start_frames) / cfg.anchor_fade_frames
+    return cfg.anchor * min(1.0, max(0.0, left))
 
 
 def n_critics(cfg: AlgoConfig) -> int:

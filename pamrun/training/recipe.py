@@ -258,6 +258,9 @@ class Run:
         learn_frames = self.frames - max(t.init_random_frames, self.frames - n)
         self.update_budget += max(0, learn_frames) * t.updates_per_frame
         updates, self.update_budget = int(self.update_budget), self.update_budget - int(self.update_budget)
+        if learner.anchor_actor is not None:
+            learner.anchor_weight = networks.anchor_weight(self.cfg.algo, self.frames)
+            self.log.writer.add_scalar("curriculum/anchor", learner.anchor_weight, self.frames)
         if updates:
             samples = self.buffer.sample(updates * learner.cfg.batch_size).reshape(updates, learner.cfg.batch_size)
             for i in range(updates):
