@@ -82,7 +82,7 @@ def tracking_rms(x_m: np.ndarray, command: np.ndarray, dt: float) -> float:
 def stand_still(arrays: dict, contact_threshold_n: float, dt: float) -> tuple[float, float]:
     """``stand_still_feet_down_share`` and ``stand_still_drift_m`` (module docstring)."""
     t, down, drift = arrays["t_s"], [], 0.0
-    both = (np.asarray(arrays["foot_force_n"]) > contact_threshold_n).all(axis=1)
+    both = contacts(arrays, contact_threshold_n).all(axis=1)
     for start, end, speed in segments(arrays["target_speed_m_s"], dt):
         settled = (t >= start + SETTLE_S - 1e-9) & (t <= end + 1e-9)
         if speed != 0 or not settled.any():
