@@ -60,7 +60,8 @@ class AlgoConfig:
     anchor: float = 0.0
     # The anchor fades: its weight falls linearly from b to 0 over anchor_fade_frames, from frame
     # anchor_fade_start_frames of the run on (its frame count, as train.max_frames'), so that new critics learn
-    # under it and the actor then goes where they lead (TensorBoard curriculum/anchor). 0 = it holds all run.
+    # under it and the actor then goes where they lead (TensorBoard curriculum/anchor). Tried once (k16 in
+    # docs/results.md), the freed actor drifted from its gait and fell as the weight passed 0.05. 0 = it holds all run.
     anchor_fade_start_frames: int = 0
     anchor_fade_frames: int = 0
     # CrossQ (Bhatt, Palenicek et al., ICLR 2024), for td3 or sac: the concatenating critics batch-renormalised
