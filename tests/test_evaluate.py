@@ -7,6 +7,7 @@ import json
 import os
 import pickle
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,6 +23,7 @@ from pamrun.evaluation.episodes import (
 )
 from pamrun.evaluation.ranking import rank
 from pamrun.learning.checkpoints import CheckpointError, find_checkpoints, load_agent
+from pamrun.physics.body import JOINTS
 from pamrun.task.criteria import stood, walk_passed
 from pamrun.task.observation import N_JOINTS, OBS_SIZE
 from tests.conftest import compose_config, run_pamrun
@@ -305,6 +307,41 @@ def test_no_checkpoints_fails_before_anything_is_written(tmp_path):
         assert not out.exists()
     proc = run_pamrun("eval", f"hydra.run.dir={out}")
     assert proc.returncode != 0 and "no checkpoint given" in proc.stderr
+
+
+SHIPPED = Path(__file__).parents[1] / "agents" / "walker_td3_seed0.pt"
+
+
+def _left_ankle_roll_deg(out: Path) -> np.ndarray:
+    """Every control step's left ankle roll [deg] of an evaluation's episodes.jsonl."""
+    index = JOINTS.index("left_ankle_roll")
+    rows = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
+    return np.degrees([step[index] for row in rows for step in row["steps"]["joint_angle_rad"]])
+
+
+def test_a_key_on_the_command_line_changes_each_agents_own_env(tmp_path):
+    """``pamrun eval ckpt=<agent> body.KEY=...`` runs the agent in its own robot and task with that key
+    changed (here the ankle roll's stop moved from -25 to -10 deg, which the shipped walker leans
+    on); a preset chosen there is said to be left out, and a change impossible in the agent's own env
+    fails before anything is written, naming the key."""
+    common = ["eval.episodes=2", "eval.episode_s=2", "eval.walk_duration_s=2", "eval.workers=1"]
+    plain = run_pamrun("eval", f"ckpt={SHIPPED}", *common, f"hydra.run.dir={tmp_path / 'plain'}")
+    assert plain.returncode == 0, plain.stderr[-2000:]
+    assert _left_ankle_roll_deg(tmp_path / "plain").min() < -20  # on its stop at -25
+    changed = run_pamrun("eval", f"ckpt={SHIPPED}", *common, "body.ankle_roll_limits_deg=[-10,35]",
+                         "experiment=thesis", f"hydra.run.dir={tmp_path / 'changed'}")
+    assert changed.returncode == 0, changed.stderr[-2000:]
+    assert _left_ankle_roll_deg(tmp_path / "changed").min() > -13  # the stop is at -10 now (within its give)
+    out = " ".join(changed.stdout.split())
+    assert "with body.ankle_roll_limits_deg=[-10.0, 35.0]" in out
+    assert "experiment=thesis chose a robot or task that no agent runs in" in out
+    state = torch.load(SHIPPED, map_location="cpu", weights_only=True)
+    state["config"]["env"]["slope_deg"] = 3.0  # an agent trained on a slope: one terrain at a time
+    torch.save(state, tmp_path / "sloped.pt")
+    proc = run_pamrun("eval", f"ckpt={tmp_path / 'sloped.pt'}", "env.step_height_m=0.02",
+                      f"hydra.run.dir={tmp_path / 'no'}")
+    assert proc.returncode != 0 and not (tmp_path / "no").exists()
+    assert "env.step_height_m: one terrain at a time" in proc.stderr, proc.stderr
 
 
 def test_only_unreadable_checkpoints_is_an_error(tmp_path):

@@ -123,8 +123,10 @@ class EvalConfig:
     noise), episode k from seed ``seed + k`` for every agent, so the comparison is fair.
     The start pose gets uniform joint-angle noise of ``reset_noise_rad`` (not in the
     thesis, which tested from the nominal pose: with 0 every episode is the same). Each
-    agent acts in the robot and task it was trained on (the config stored with it) unless
-    ``use_agent_env`` is false; then the command line's groups apply.
+    agent acts in the robot and task it was trained on (the config stored with it), with the
+    ``body``, ``muscle``, ``reward`` and ``env`` keys set on ``pamrun eval``'s command line changed
+    (:func:`pamrun.evaluation.evaluate.command_line_changes`), unless ``use_agent_env`` is false;
+    then the command line's groups apply.
 
     **Two seed blocks.** Evaluation during training selects agents (``best_eval.pt``) on
     seeds ``selection_seed + k``, k < ``train.eval_episodes``; ``pamrun eval`` reports on
@@ -162,7 +164,7 @@ class EvalConfig:
     # ranks before distance: an agent that stands 10 s beats one that lunges 10 cm and falls.
     rank_by: list[str] = field(default_factory=lambda: ["walk_pass_rate", "stand_rate", "distance_mean"])
     include_last: bool = True  # a run directory's final agent (checkpoints/last.pt) competes too
-    use_agent_env: bool = True
+    use_agent_env: bool = True  # each agent in its own robot and task (+ the command line's keys); false: the command line's
     top_k: int = 5  # agents drawn in trajectories.png
     save_steps: bool = True  # per-step data in episodes.jsonl
     render: bool = False  # the best agent's first episode: mp4, a strip of its frames, a GIF

@@ -4,12 +4,13 @@ run over ``eval.workers`` processes with a progress display."""
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from omegaconf.errors import OmegaConfBaseException
 
-from pamrun.config import ConfigError
+from pamrun.config import ConfigError, flatten
 from pamrun.evaluation.episodes import agent_env, evaluate_agents
 from pamrun.learning.checkpoints import Agent, CheckpointError, check_fits, find_checkpoints, load_agent, unique_labels
 from pamrun.runs.files import Progress
@@ -19,13 +20,14 @@ from pamrun.task.observation import space_sizes
 from pamrun.task.spec import EnvSpec
 
 
-def load_agents(spec: str, cfg) -> tuple[list[Agent], list[EnvSpec], list[dict]]:
-    """Agents named by ``spec`` with the env each is evaluated in, and one error row per unusable file."""
+def load_agents(spec: str, cfg, changes: dict | None = None) -> tuple[list[Agent], list[EnvSpec], list[dict]]:
+    """Agents named by ``spec`` with the env each is evaluated in (:func:`agent_env`, with ``changes``),
+    and one error row per unusable file."""
     loaded, envs, errors = [], [], []
     for path in find_checkpoints(spec, cfg.eval.include_last):
         try:
             agent = load_agent(path)
-            env = agent_env(agent, cfg)
+            env = agent_env(agent, cfg, changes)
             check_fits(agent, *space_sizes(env.muscle, env.env))
         except CheckpointError as err:
             errors.append({"path": err.path, "error": err.message})
@@ -39,12 +41,22 @@ def load_agents(spec: str, cfg) -> tuple[list[Agent], list[EnvSpec], list[dict]]
     return loaded, envs, errors
 
 
-def start(cfg, spec: str, out: Path) -> tuple[Any, list[Agent], list[EnvSpec], list[dict]]:
-    """A console, ``out`` made, and the usable agents of ``spec`` with their envs and the
-    unusable files (named on the console); exits when none is usable."""
+def start(cfg, spec: str, out: Path, changes: dict | None = None,
+          presets: Sequence[str] = ()) -> tuple[Any, list[Agent], list[EnvSpec], list[dict]]:
+    """A console, ``out`` made, and the usable agents of ``spec`` with their envs and the unusable
+    files (named on the console); exits when none is usable. ``changes``: the command line's keys,
+    set in each agent's own env (:func:`agent_env`); ``presets``: the command line's choices of
+    whole robots and tasks, which an agent's own env does not take (both said on the console)."""
     console = make_console()
     out.mkdir(parents=True, exist_ok=True)
-    agents, envs, errors = load_agents(spec, cfg)
+    agents, envs, errors = load_agents(spec, cfg, changes)
+    if changes:
+        said = ", ".join(f"{k}={v}" for k, v in flatten(changes).items())
+        console.print(f"Each agent in its own robot and task, with {said} (eval.use_agent_env)", soft_wrap=True)
+    if presets:
+        console.print(f"[yellow]note[/yellow] {', '.join(presets)} chose a robot or task that no agent runs in: each "
+                      f"runs in its own (eval.use_agent_env=true), with only the keys set one by one changed; "
+                      f"eval.use_agent_env=false runs every agent in the command line's", soft_wrap=True)
     for err in errors:
         console.print(f"[red]skipped[/red] {err['path']}: {err['error']}", soft_wrap=True)
     if not agents:

@@ -48,12 +48,15 @@ def make_policy(agent: Agent):
     return policy
 
 
-def agent_env(agent: Agent, cfg) -> EnvSpec:
+def agent_env(agent: Agent, cfg, changes: dict | None = None) -> EnvSpec:
     """The env ``agent`` is evaluated in: its own robot and task (with ``eval.use_agent_env``;
-    a section it did not store, or all without, the command line's), with the evaluation's
-    start noise, episode length and held commanded speed. Validated here."""
+    a section it did not store, or all without, the command line's) with ``changes`` (section ->
+    key -> value: the keys set on ``pamrun eval``'s command line), then the evaluation's start
+    noise, episode length and held commanded speed. Validated here."""
     own = agent.config if cfg.eval.use_agent_env else None
-    return EnvSpec.from_dict(own, base=EnvSpec.from_config(cfg), env=eval_env_options(cfg.eval))
+    values = {name: dict(keys) for name, keys in (changes or {}).items()}
+    values["env"] = {**values.get("env", {}), **eval_env_options(cfg.eval)}
+    return EnvSpec.from_dict(own, base=EnvSpec.from_config(cfg), **values)
 
 
 # What run_episode records per control step (pamrun.evaluation.metrics reads them): torso position and

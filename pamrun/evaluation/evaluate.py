@@ -39,13 +39,15 @@ perturbation: walk pass rate with its interval, stand rate, distance, ...),
 
 from __future__ import annotations
 
-import copy
 from pathlib import Path
 
-from omegaconf import open_dict, read_write
+from hydra.core.hydra_config import HydraConfig
+from hydra.core.override_parser.overrides_parser import OverridesParser
+from omegaconf import OmegaConf
 
-from pamrun.config import ConfigError, to_object
+from pamrun.config import ConfigError, to_object, without_hydra
 from pamrun.evaluation.agents import run_all, start
+from pamrun.evaluation.episodes import agent_env
 from pamrun.evaluation.ranking import warn_if_not_held_out
 from pamrun.evaluation.results import draw_figures, write_results
 from pamrun.evaluation.suite import run_suite
@@ -54,43 +56,78 @@ from pamrun.learning.checkpoints import CheckpointError, find_checkpoints, load_
 from pamrun.runs.files import run_dir
 from pamrun.task.spec import EnvSpec, eval_env_options
 
+# The config sections an agent file stores (its robot and task), which a key on the command line changes
+# in each agent's own env; the groups of the same names, and experiment=, choose a whole preset of them.
+AGENT_SECTIONS = ("body", "muscle", "reward", "env")
+
+
+def command_line_changes(config, overrides: list[str]) -> tuple[dict, list[str]]:
+    """The keys of :data:`AGENT_SECTIONS` set on ``pamrun eval``'s command line (``overrides``: Hydra's
+    task overrides; section -> nested dict of their composed values in ``config``), and the presets chosen there that an agent's own env
+    does not take (``experiment=...``, ``body=...``); both empty with ``eval.use_agent_env=false``,
+    where the command line's robot and task are the env."""
+    if not config.eval.use_agent_env:
+        return {}, []
+    changes: dict[str, dict] = {}
+    presets = []
+    for override in OverridesParser.create().parse_overrides(overrides):
+        key = override.key_or_group
+        section, _, rest = key.partition(".")
+        if not rest:
+            if section in (*AGENT_SECTIONS, "experiment"):
+                presets.append(f"{key}={override.value()}")
+            continue
+        if section not in AGENT_SECTIONS or override.is_delete():
+            continue
+        *path, name = rest.split(".")
+        node = changes.setdefault(section, {})
+        value = config[section]
+        for part in path:
+            node, value = node.setdefault(part, {}), value[part]
+        value = value[name]
+        node[name] = OmegaConf.to_container(value) if OmegaConf.is_config(value) else value
+    return changes, presets
+
 
 def check_config(config) -> None:
-    """``ckpt`` must name at least one usable checkpoint (run by pamrun.cli before any directory exists)."""
-    if config.eval.suite:  # every perturbation of the suite applied to the command line's robot and task
-        config = copy.deepcopy(config)
-        with read_write(config), open_dict(config):
-            config.pop("hydra", None)  # (its interpolations resolve only inside a Hydra job)
-        cfg = to_object(config)
+    """``ckpt`` must name at least one usable checkpoint, in whose own env the command line's keys
+    (:func:`command_line_changes`) are valid (run by pamrun.cli before any directory exists)."""
+    changes, _ = command_line_changes(config, list(config.hydra.overrides.task) if "hydra" in config else [])
+    cfg = to_object(without_hydra(config))
+    if cfg.eval.suite:  # every perturbation of the suite applied to the command line's robot and task
         base = EnvSpec.from_config(cfg).with_values(env=eval_env_options(cfg.eval))
         for name in cfg.eval.suites[cfg.eval.suite]:
             base.perturbed(cfg.eval.perturbations[name], f"eval.perturbations.{name}")
     try:
-        paths = find_checkpoints(config.ckpt, config.eval.include_last)
+        paths = find_checkpoints(cfg.ckpt, cfg.eval.include_last)
     except CheckpointError as err:
         raise ConfigError("ckpt", str(err)) from None
     errors = []
     for path in paths:  # at least one must load, or the evaluation would write only its failure
         try:
-            load_agent(path)
-            return
+            agent = load_agent(path)
         except CheckpointError as err:
             errors.append(err)
+            continue
+        agent_env(agent, cfg, changes)  # ConfigError naming the key a change makes impossible there
+        return
     raise ConfigError("ckpt", f"none of its {len(paths)} checkpoint(s) is usable; the first: {errors[0]}")
 
 
 def evaluate(dcfg) -> None:
     """The Hydra task of ``pamrun eval``."""
+    changes, presets = command_line_changes(dcfg, list(HydraConfig.get().overrides.task))
     cfg = to_object(dcfg)
     if cfg.eval.suite:
-        run_suite(cfg, cfg.ckpt, run_dir())
+        run_suite(cfg, cfg.ckpt, run_dir(), changes, presets)
     else:
-        run_evaluation(cfg, cfg.ckpt, run_dir())
+        run_evaluation(cfg, cfg.ckpt, run_dir(), changes, presets)
 
 
-def run_evaluation(cfg, ckpt: str, out: Path) -> dict:
-    """Evaluate the agents named by ``ckpt`` into ``out``; the selection (selection.json's content)."""
-    console, agents, envs, errors = start(cfg, ckpt, out)
+def run_evaluation(cfg, ckpt: str, out: Path, changes: dict | None = None, presets: list[str] = ()) -> dict:
+    """Evaluate the agents named by ``ckpt`` into ``out``; the selection (selection.json's content).
+    ``changes`` and ``presets``: :func:`command_line_changes`'s."""
+    console, agents, envs, errors = start(cfg, ckpt, out, changes, presets)
     is_held_out = warn_if_not_held_out(agents, cfg, console)
     results, workers, wall = run_all(agents, envs, cfg.eval, console)
     ranked, best, selection = write_results(out, cfg, ckpt, agents, results, errors, workers, wall, is_held_out)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
 
@@ -21,14 +22,14 @@ ROBUSTNESS_FIELDS = ("agent", "perturbation", "note", "episodes", "walk_passes",
                      "foot_slip_m_s_mean", "cost_of_transport_mean", "air_nl_per_m_mean")
 
 
-def run_suite(cfg, ckpt: str, out: Path) -> list[dict]:
+def run_suite(cfg, ckpt: str, out: Path, changes: dict | None = None, presets: Sequence[str] = ()) -> list[dict]:
     """``pamrun eval eval.suite=NAME``: every agent under each perturbation of the suite, on the
     same held-out seeds; writes robustness.csv/.json, robustness_episodes.jsonl and
-    robustness.png; returns the rows (agent x perturbation)."""
+    robustness.png; returns the rows (agent x perturbation). ``changes``, ``presets``: as :func:`start`'s."""
     from pamrun.evaluation import figures  # (as in pamrun.evaluation.results.draw_figures)
 
     ecfg = cfg.eval
-    console, agents, envs, errors = start(cfg, ckpt, out)
+    console, agents, envs, errors = start(cfg, ckpt, out, changes, presets)
     names = list(ecfg.suites[ecfg.suite])
     runs = [(agent, name, env.perturbed(ecfg.perturbations[name], f"eval.perturbations.{name}"))
             for agent, env in zip(agents, envs) for name in names]
