@@ -45,7 +45,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import OmegaConf
 
-from pamrun.config import ConfigError, to_object, without_hydra
+from pamrun.config import ENV_SECTIONS, ConfigError, to_object, without_hydra
 from pamrun.evaluation.agents import run_all, start
 from pamrun.evaluation.episodes import agent_env
 from pamrun.evaluation.ranking import warn_if_not_held_out
@@ -56,16 +56,13 @@ from pamrun.learning.checkpoints import CheckpointError, find_checkpoints, load_
 from pamrun.runs.files import run_dir
 from pamrun.task.spec import EnvSpec, eval_env_options
 
-# The config sections an agent file stores (its robot and task), which a key on the command line changes
-# in each agent's own env; the groups of the same names, and experiment=, choose a whole preset of them.
-AGENT_SECTIONS = ("body", "muscle", "reward", "env")
-
 
 def command_line_changes(config, overrides: list[str]) -> tuple[dict, list[str]]:
-    """The keys of :data:`AGENT_SECTIONS` set on ``pamrun eval``'s command line (``overrides``: Hydra's
-    task overrides; section -> nested dict of their composed values in ``config``), and the presets chosen there that an agent's own env
-    does not take (``experiment=...``, ``body=...``); both empty with ``eval.use_agent_env=false``,
-    where the command line's robot and task are the env."""
+    """The keys of the sections an agent file stores (:data:`pamrun.config.ENV_SECTIONS`: its robot
+    and task) set on ``pamrun eval``'s command line (``overrides``: Hydra's task overrides; section ->
+    nested dict of their composed values in ``config``), and the presets chosen there (a group of the
+    same name, or ``experiment=``) that an agent's own env does not take; both empty with
+    ``eval.use_agent_env=false``, where the command line's robot and task are the env."""
     if not config.eval.use_agent_env:
         return {}, []
     changes: dict[str, dict] = {}
@@ -74,10 +71,10 @@ def command_line_changes(config, overrides: list[str]) -> tuple[dict, list[str]]
         key = override.key_or_group
         section, _, rest = key.partition(".")
         if not rest:
-            if section in (*AGENT_SECTIONS, "experiment"):
+            if section in (*ENV_SECTIONS, "experiment"):
                 presets.append(f"{key}={override.value()}")
             continue
-        if section not in AGENT_SECTIONS or override.is_delete():
+        if section not in ENV_SECTIONS or override.is_delete():
             continue
         *path, name = rest.split(".")
         node = changes.setdefault(section, {})
