@@ -335,7 +335,7 @@ def test_critic_only_updates_leave_the_actor_alone():
         learner.update(batch, actor=False)
     assert all(torch.equal(a, p) for a, p in zip(actor, learner.actor_params))
     assert not all(torch.equal(c, p) for c, p in zip(critic, learner.critic_params))
-    assert learner.updates == 4 and math.isnan(learner.losses()[0])
+    assert learner.updates == 4 and math.isnan(learner.losses()["actor"])
     learner.update(batch)
     assert not all(torch.equal(a, p) for a, p in zip(actor, learner.actor_params))
 
@@ -426,10 +426,10 @@ def test_mirror_loss_makes_the_actor_its_own_mirror_image(name):
                                         maps)
         with torch.no_grad():
             learner.actor.module.net[-2].weight.mul_(300)  # a random actor, far from symmetric
-        before = learner.mirror_loss(obs).item()
+        before = learner.mirror_residual(obs).item()
         for _ in range(40):
             learner.update(_batch())
-        return before, learner.mirror_loss(obs).item()
+        return before, learner.mirror_residual(obs).item()
 
     before, after = asymmetry(100.0)
     assert before > 0.05 and after < 0.3 * before
@@ -438,6 +438,41 @@ def test_mirror_loss_makes_the_actor_its_own_mirror_image(name):
         assert before_off == before and after_off > 0.6 * before
     with pytest.raises(ConfigError, match="mirror_loss"):
         AlgoConfig(mirror_loss=-1)
+
+
+@pytest.mark.parametrize("q_factor", [100.0, 10_000.0])
+def test_the_mirror_loss_weighs_the_same_under_any_reward_scale(q_factor):
+    """algo.mirror_loss is scaled by the batch's mean |Q|, as the anchor (TD3+BC's lambda), so one
+    weight holds the actor to its mirror image whether the critics say tens or thousands (a trained
+    walker's |Q| is in the thousands): unscaled, 4 was nothing beside a gradient of Q that large.
+    The unscaled mean square before each update is what TensorBoard's loss/mirror shows."""
+    from pamrun.task.symmetry import action_map, observation_map
+
+    maps = (*observation_map(10), *action_map(10))
+    obs = _batch()["observation"]
+
+    def residual_after(weight: float) -> tuple[float, float]:
+        torch.manual_seed(0)
+        learner = networks.make_learner(AlgoConfig(name="td3", actor_lr=1e-3, mirror_loss=weight), 43, 10, SPEC, maps)
+        with torch.no_grad():
+            learner.actor.module.net[-2].weight.mul_(30)
+            for critic in learner.critics:  # critics that say q_factor times more
+                last = [m for m in critic.modules() if isinstance(m, torch.nn.Linear)][-1]
+                last.weight.mul_(q_factor)
+                last.bias.mul_(q_factor)
+        before = learner.mirror_residual(obs).item()
+        for _ in range(30):
+            batch = _batch()
+            with torch.no_grad():
+                logged = learner.mirror_residual(batch["observation"]).item()
+            learner.update(batch)
+            assert weight == 0 or learner.losses()["mirror"] == pytest.approx(logged, rel=1e-5)
+        return before, learner.mirror_residual(obs).item()
+
+    before, off = residual_after(0.0)
+    assert off > 10 * before and "mirror" not in networks.make_learner(AlgoConfig(), 43, 10, SPEC, maps).losses()
+    before, on = residual_after(3.0)
+    assert on < before
 
 
 @pytest.mark.parametrize("name", ["td3", "sac"])
@@ -501,5 +536,5 @@ def test_the_recipe_gives_the_learner_the_envs_mirror_maps(overrides):
     obs = torch.randn(8, learner.actor.module.net[0].in_features)
     o_index, o_sign, a_index, _ = learner.mirror
     assert len(o_index) == obs.shape[1] and len(a_index) == learner.actor.module.net[-2].out_features
-    assert learner.mirror_loss(obs).item() > 0
+    assert learner.mirror_residual(obs).item() > 0
     assert make_learner(to_object(compose_config(*overrides))).mirror is None

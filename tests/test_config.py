@@ -162,7 +162,7 @@ def test_the_default_recipe_walks_and_the_thesis_is_one_word_away():
     gait stage); experiment=walk and experiment=thesis stay one word away; a group on the command line
     wins over the experiment's choice."""
     gait, walker = to_object(compose_config(recipe=None)), to_object(compose_config("experiment=walker"))
-    assert (gait.algo.name, gait.algo.critic, gait.reward.kt, gait.algo.mirror_loss) == ("td3", "concat", 400.0, 4.0)
+    assert (gait.algo.name, gait.algo.critic, gait.reward.kt, gait.algo.mirror_loss) == ("td3", "concat", 400.0, 0.6)
     assert gait.train.gait_weights["kflight"] > gait.train.walk_weights["kflight"] > 0
     assert gait.train.walk_weights["kspeed"] == walker.train.walk_weights["kspeed"] > 0  # walker's, extended
     assert gait.train.randomize == walker.train.randomize and gait.train.mirror and not gait.train.stop_on_walk

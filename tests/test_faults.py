@@ -178,10 +178,10 @@ def test_td3_resumed_between_actor_updates_logs_its_losses():
                                  "done": torch.zeros(n, 1, dtype=torch.bool),
                                  "terminated": torch.zeros(n, 1, dtype=torch.bool)}}, [n])
     learner.update(batch)
-    actor_loss, critic_loss = learner.losses()
-    assert learner.updates == 50 and math.isnan(actor_loss) and math.isfinite(critic_loss)
+    losses = learner.losses()
+    assert learner.updates == 50 and math.isnan(losses["actor"]) and math.isfinite(losses["critic"])
     learner.update(batch)  # update 50: the actor's turn
-    assert all(math.isfinite(v) for v in learner.losses())
+    assert all(math.isfinite(v) for v in learner.losses().values())
 
 
 def test_an_unknown_key_fails_even_with_plus(tmp_path):

@@ -230,7 +230,7 @@ def test_the_default_recipe_runs_end_to_end(tmp_path):
     assert run["status"] == "max_frames" and run["frames"] == 1200
     assert len(list(csv.DictReader((run_dir / "evals.csv").open()))) == 3
     saved = saved_config(run_dir)
-    assert saved.algo.mirror_loss == 4.0 and saved.train.mirror and saved.train.gait_weights == {"kflight": 20.0}
+    assert saved.algo.mirror_loss == 0.6 and saved.train.mirror and saved.train.gait_weights == {"kflight": 20.0}
     assert saved.eval.rank_by[1] == "walk_targets_met" and (run_dir / "checkpoints" / "best_eval.pt").exists()
 
 

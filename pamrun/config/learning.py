@@ -48,9 +48,11 @@ class AlgoConfig:
     init_alpha: float = 1.0  # SAC's initial entropy temperature alpha (learned; lr = actor_lr)
     target_entropy: float = -1.0  # SAC's target entropy per action dimension
     grad_clip: float = 1.0  # gradient threshold of the MathWorks example
-    # Weight w of the mirror loss added to the actor's loss, w mean ||pi(s) - M_a pi(M_s s)||^2 with M_s, M_a the
-    # observation's and action's mirror images (pamrun/task/symmetry.py): the policy is asked to be its own
-    # mirror image, beyond mirrored data (train.mirror). Yu, Turk & Liu, SIGGRAPH 2018: weight 4. 0 = off.
+    # Weight w of the mirror loss added to the actor's loss, w mean|Q| mean ||pi(s) - M_a pi(M_s s)||^2 with M_s,
+    # M_a the observation's and action's mirror images (pamrun/task/symmetry.py): the policy is asked to be its
+    # own mirror image, beyond mirrored data (train.mirror) (Yu, Turk & Liu, SIGGRAPH 2018, beside PPO's
+    # normalised surrogate: weight 4). Scaled by the batch's mean |Q| as the anchor below, so that w reads the
+    # same under any reward scale (TensorBoard loss/mirror: the unscaled mean square). 0 = off.
     mirror_loss: float = 0.0
     # Weight b of the anchor added to the actor's loss when a run starts from a trained agent (train.init_from):
     # b mean|Q| mean ||pi(s) - pi_0(s)||^2, pi_0 the actor it started from, frozen. Scaled by the batch's mean |Q|

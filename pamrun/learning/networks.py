@@ -237,6 +237,7 @@ class Learner:
         # The last losses, for logging; the actor's is set only on actor updates (TD3: every 2nd),
         # so a run resumed between two of them has none yet.
         self._actor_loss: torch.Tensor | None = None
+        self._mirror_residual: torch.Tensor | None = None
         self._critic_loss: torch.Tensor | None = None
         self.anchor_actor: nn.Module | None = None  # pi_0 of algo.anchor: the actor start_from took, frozen
         self._q_scale = torch.tensor(0.0)  # the last actor loss's mean |Q|, the anchor's scale
@@ -280,13 +281,20 @@ class Learner:
             start = self.anchor_actor(obs)
         return self._q_scale * (self.actor.module(obs) - start).pow(2).mean()
 
-    def mirror_loss(self, obs) -> torch.Tensor:
-        """mean ||pi(s) - M_a pi(M_s s)||^2 over the batch and the actions: 0 for a policy that is
-        its own mirror image (Yu, Turk & Liu 2018)."""
+    def mirror_residual(self, obs) -> torch.Tensor:
+        """mean ||pi(s) - M_a pi(M_s s)||^2 over the batch and the actions: 0 for a policy that is its
+        own mirror image (Yu, Turk & Liu 2018)."""
         o_index, o_sign, a_index, a_sign = self.mirror
         action = self.actor.module(obs)
         mirrored = self.actor.module(obs[..., o_index] * o_sign.to(obs.dtype))
         return (action - mirrored[..., a_index] * a_sign.to(obs.dtype)).pow(2).mean()
+
+    def mirror_loss(self, obs) -> torch.Tensor:
+        """mean|Q| x :meth:`mirror_residual`, scaled as :meth:`anchor_loss` (mean|Q| from the
+        :meth:`actor_loss` just computed); the residual is kept for TensorBoard's loss/mirror."""
+        residual = self.mirror_residual(obs)
+        self._mirror_residual = residual.detach()
+        return self._q_scale * residual
 
     def after_actor_step(self) -> None:
         """What follows each actor step, before the targets' soft update (SAC: its temperature)."""
@@ -335,9 +343,13 @@ class Learner:
             for target, param in zip(targets, params):
                 target.lerp_(param, tau)
 
-    def losses(self) -> tuple[float, float]:
-        """The last (actor, critic) losses, for logging (nan where there is none yet)."""
-        return tuple(math.nan if t is None else t.item() for t in (self._actor_loss, self._critic_loss))
+    def losses(self) -> dict[str, float]:
+        """The last losses for logging, by name: actor, critic and, with ``algo.mirror_loss``, the
+        actor's unscaled mean squared mirror residual (nan where there is none yet)."""
+        values = {"actor": self._actor_loss, "critic": self._critic_loss}
+        if self.mirror is not None and self.cfg.mirror_loss:
+            values["mirror"] = self._mirror_residual
+        return {name: math.nan if t is None else t.item() for name, t in values.items()}
 
     def q0(self, observations: torch.Tensor) -> list[float]:
         """Q(s, pi(s)) of each observation: the thesis' Q0 curve at episode starts (Fig. 10.24)."""

@@ -266,7 +266,7 @@ class Run:
             for i in range(updates):
                 learner.update(samples[i], self.frames >= t.actor_start_frames)
                 if learner.updates % 50 == 0:
-                    for name, value in zip(("actor", "critic"), learner.losses()):
+                    for name, value in learner.losses().items():
                         self.log.writer.add_scalar(f"loss/{name}", value, learner.updates)
         return learn_frames > 0
 
