@@ -415,6 +415,21 @@ def test_torso_pitch_is_its_mean_after_the_first_second():
     assert math.isnan(episode_metrics(still(n), spec())["torso_pitch_deg"])
 
 
+def test_torso_sway_is_how_far_its_roll_rocks_after_the_first_second():
+    """torso_sway_deg: a torso rolling +-7 deg at a step's rhythm reads 7 deg (half its 5-95 % range),
+    whatever its mean lean; the first second and a still torso read nothing; NaN without the torso's
+    orientation."""
+    n = 200  # 5 s
+    t = np.arange(1, n + 1) * DT
+    rpy = np.zeros((n, 3))
+    rpy[:, 0] = np.where(t > 1.0 + 1e-9, math.radians(7.0) * np.sign(np.sin(2 * math.pi * 0.8 * t)), math.radians(30.0))
+    rpy[:, 1] = math.radians(5.0)
+    assert episode_metrics(still(n, torso_rpy_rad=rpy), spec())["torso_sway_deg"] == pytest.approx(7.0)
+    rpy[:, 0] = math.radians(3.0)
+    assert episode_metrics(still(n, torso_rpy_rad=rpy), spec())["torso_sway_deg"] == pytest.approx(0.0)
+    assert math.isnan(episode_metrics(still(n), spec())["torso_sway_deg"])
+
+
 def test_sole_tilt_is_the_side_to_side_angle_of_a_foot_on_the_ground():
     """A sole rolled 10 deg onto its edge reads 10 deg whatever its heading and its pitch (a foot
     rolling heel to toe is not on its edge); flat, 0; a tilted foot off the ground is not counted;

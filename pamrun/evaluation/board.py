@@ -39,6 +39,7 @@ GAIT_SCALARS = {
     "foot_slip_m_s": "foot_slip_m_s_mean",
     "sole_tilt_deg": "sole_tilt_deg_mean",
     "torso_pitch_deg": "torso_pitch_deg_mean",
+    "torso_sway_deg": "torso_sway_deg_mean",
     "pressure_change_kpa": "pressure_change_mean",
     "cost_of_transport": "cost_of_transport_mean",
     "air_nl_per_m": "air_nl_per_m_mean",

@@ -147,6 +147,7 @@ GAIT_METRICS = (
     "foot_slip_m_s",
     "sole_tilt_deg",
     "torso_pitch_deg",
+    "torso_sway_deg",
     "cost_of_transport",
     "air_nl",
     "air_nl_per_m",
@@ -329,14 +330,16 @@ def sole_tilt_deg(steps: dict, contact: np.ndarray) -> float:
     return float(np.degrees(np.abs(sole_tilt_rad(points))[contact]).mean())
 
 
-def torso_pitch_deg(steps: dict) -> float:
-    """Mean pitch of the torso [deg] after the first ``SETTLE_S``, + leaning forward (NaN without
-    such a row, or for an episode recorded without the torso's orientation)."""
-    if "torso_rpy_rad" not in steps:
-        return math.nan
+def torso_lean_and_sway_deg(steps: dict) -> tuple[float, float]:
+    """After the first ``SETTLE_S``: the torso's mean pitch [deg], + leaning forward, and how far it
+    rocks side to side [deg], half the range between the 5th and 95th percentiles of its roll (a
+    torso rolling +-7 deg each step reads about 7; a push's single lurch barely counts). NaN, NaN
+    without such a row, or for an episode recorded without the torso's orientation."""
     late = np.asarray(steps["t_s"], float) > SETTLE_S + 1e-9
-    pitch = np.asarray(steps["torso_rpy_rad"], float).reshape(-1, 3)[late, 1]
-    return float(np.degrees(pitch).mean()) if len(pitch) else math.nan
+    if "torso_rpy_rad" not in steps or not late.any():
+        return math.nan, math.nan
+    roll, pitch = np.degrees(np.asarray(steps["torso_rpy_rad"], float).reshape(-1, 3)[late, :2]).T
+    return float(pitch.mean()), float(np.subtract(*np.percentile(roll, [95, 5])) / 2)
 
 
 def support_shares(steps: dict, contact: np.ndarray) -> tuple[float, float]:
@@ -475,7 +478,7 @@ def episode_metrics(steps: dict, spec: GaitSpec) -> dict[str, float]:
     out["swing_clearance_m"] = swing_clearance_m(steps, events)
     out["foot_slip_m_s"] = foot_slip_m_s(steps, contact)
     out["sole_tilt_deg"] = sole_tilt_deg(steps, contact)
-    out["torso_pitch_deg"] = torso_pitch_deg(steps)
+    out["torso_pitch_deg"], out["torso_sway_deg"] = torso_lean_and_sway_deg(steps)
     out["double_support_share"], out["flight_share"] = support_shares(steps, contact)
     (out["knee_midstance_deg"], out["knee_swing_peak_deg"], out["hip_extension_deg"],
      out["hip_swing_peak_deg"]) = leg_phases_deg(steps, events, spec)

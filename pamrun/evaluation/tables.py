@@ -32,10 +32,10 @@ def gait_table(ranked: list[dict], limit: int = 20):
     """The gait metrics' means (and spreads) per agent (pamrun.evaluation.metrics defines them)."""
     table = Table(title="Gait (means ± std over episodes; 'hops': touchdowns with both feet together; 'at a stop': "
                         "the joint most often within 2° of a stop, knees only in swing; reach: a landing foot ahead of the torso; 'both down / flight': shares "
-                        "of the time after the first second; knee: flexion at mid-stance / its peak in swing / at touchdown; hip: its largest flexion in swing / at touchdown / its largest extension in stance; sole tilt: a foot on the ground, side to side; lean: the torso's pitch, + forward; "
+                        "of the time after the first second; knee: flexion at mid-stance / its peak in swing / at touchdown; hip: its largest flexion in swing / at touchdown / its largest extension in stance; sole tilt: a foot on the ground, side to side; lean / sway: the torso's pitch, + forward / how far it rocks side to side; "
                         "clock: the median touchdown's lag behind its gait clock's, in periods / the share within 0.1 of it)")
     for col in ("#", "agent", "speed (m/s)", "cadence (steps/s)", "stride (m)", "reach (m)", "symmetry time/length", "hops", "duty",
-                "both down / flight", "knee stance / swing / landing (°)", "hip swing / landing / ext (°)", "at a stop", "clearance (m)", "slip (m/s)", "sole tilt (°)", "lean (°)", "clock", "CoT",
+                "both down / flight", "knee stance / swing / landing (°)", "hip swing / landing / ext (°)", "at a stop", "clearance (m)", "slip (m/s)", "sole tilt (°)", "lean / sway (°)", "clock", "CoT",
                 "air (NL/m)", "walk targets"):
         table.add_column(col, justify="left" if col == "agent" else "right", no_wrap=col != "agent", overflow="fold")
 
@@ -51,7 +51,7 @@ def gait_table(ranked: list[dict], limit: int = 20):
                       f"{row['knee_midstance_deg_mean']:.0f} / {row['knee_swing_peak_deg_mean']:.0f} / {row['knee_touchdown_deg_mean']:.0f}",
                       f"{row['hip_swing_peak_deg_mean']:.0f} / {row['hip_touchdown_deg_mean']:.0f} / {row['hip_extension_deg_mean']:.0f}", f"{row['stop_share_gait_max_mean']:.0%}",
                       pm(row, "swing_clearance_m", ".3f"), pm(row, "foot_slip_m_s"),
-                      pm(row, "sole_tilt_deg", ".0f"), pm(row, "torso_pitch_deg", ".0f"), _clock(row), pm(row, "cost_of_transport"), pm(row, "air_nl_per_m", ".1f"),
+                      pm(row, "sole_tilt_deg", ".0f"), f"{row['torso_pitch_deg_mean']:.0f} / {row['torso_sway_deg_mean']:.0f}", _clock(row), pm(row, "cost_of_transport"), pm(row, "air_nl_per_m", ".1f"),
                       f"{row['walk_targets_met']}/{len(WALK_TARGETS)}")
     return table
 
