@@ -3,7 +3,7 @@
     python benchmarks/update_levers.py [--updates 200] [--repeats 5] [--threads 2]
 
 The shipped update is the walking recipe's (experiment=command: TD3, the concatenating critic,
-400/300, batch 128, the mirror loss weighed 4, the actor every 2nd update) on the command
+400/300, batch 128, the mirror loss weighed 0.6 x mean|Q|, the actor every 2nd update) on the command
 recipe's observation (speed command and gait clock) and 10 actions. Each lever is timed against a
 fresh shipped learner in alternating chunks of 10 updates (so load that comes and goes hits both
 alike), ``--repeats`` times:
@@ -49,7 +49,7 @@ from pamrun.task.symmetry import action_map, observation_map
 ACT = 10
 OBS = obs_size(observation_structure(ACT, speed_command=True, gait_clock=True))
 WALKING = {"name": "td3", "critic": "concat", "target_smoothing": 0.005, "critic_lr": 1e-3, "actor_update_every": 2,
-           "mirror_loss": 4.0}  # conf/algo/td3.yaml with conf/experiment/walk.yaml's and gait.yaml's changes
+           "mirror_loss": 0.6}  # conf/algo/td3.yaml with conf/experiment/walk.yaml's and gait.yaml's changes
 RESULTS = Path(__file__).parent / "results" / "update_levers.jsonl"
 
 
